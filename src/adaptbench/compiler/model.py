@@ -1,0 +1,254 @@
+"""The compiled domain: frozen dataclasses built from the spec, shared by every other part.
+
+A `CompiledDomain` is immutable, carries a content hash of the spec it came from, and
+round-trips through JSON (`to_json` / `from_json`).
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, fields
+from functools import cached_property
+
+from . import ast as A
+
+
+@dataclass(frozen=True)
+class Where:
+    """A spec position: file and 1-based line/column."""
+
+    file: str
+    line: int
+    col: int
+
+
+@dataclass(frozen=True)
+class EntitySpec:
+    """A room, furniture item/appliance, or movable object of the master scene."""
+
+    id: str
+    kind: str  # room | furniture | movable
+    description: str
+    category: str
+    tags: tuple
+    location: str | None  # room for furniture, parent entity for movables, None for rooms
+    contents: tuple = ()
+    mandatory: bool = False
+
+
+@dataclass(frozen=True)
+class Substance:
+    """Something held as contents (whole_milk, salt, water): a category and tags."""
+
+    id: str
+    description: str
+    category: str
+    tags: tuple
+
+
+@dataclass(frozen=True)
+class Precondition:
+    """A rule the action's slots must satisfy, and the failure text (with {slot} fields)."""
+
+    check: A.Rule
+    fail: str
+
+
+@dataclass(frozen=True)
+class Effect:
+    """One effect primitive and its parameters (values are templates over slots)."""
+
+    primitive: str
+    params: tuple  # ((name, value), ...)
+
+    def param(self, name: str, default=None):
+        """The value of parameter `name`, or `default`."""
+        for k, v in self.params:
+            if k == name:
+                return v
+        return default
+
+
+@dataclass(frozen=True)
+class ActionSpec:
+    """An action template: surface forms, typed slots, preconditions, effects, success text."""
+
+    id: str
+    summary: str
+    example: str
+    forms: tuple
+    slots: tuple  # ((name, type), ...)
+    preconditions: tuple
+    effects: tuple
+    success: str
+
+
+@dataclass(frozen=True)
+class Component:
+    """A dish a task asks for, its kind and groups, and the rule a served dish must satisfy."""
+
+    id: str
+    text: str
+    kind: str
+    groups: tuple
+    completion: A.Rule
+
+
+@dataclass(frozen=True)
+class Style:
+    """A named way a dish was made (scrambled, poached, iced ...)."""
+
+    id: str
+    text: str
+    words: tuple
+    verbs: tuple
+    rule: A.Rule | None
+
+
+@dataclass(frozen=True)
+class Task:
+    """A task: its text and the components it must complete."""
+
+    id: str
+    text: str
+    components: tuple
+
+
+@dataclass(frozen=True)
+class Preference:
+    """One persona preference: verbatim text, rule, topics (and an optional canned answer)."""
+
+    id: str
+    text: str
+    rule: A.Rule
+    topics: tuple
+    answer: str = ""
+
+
+@dataclass(frozen=True)
+class Persona:
+    """A persona and its preferences."""
+
+    id: str
+    name: str
+    number: int
+    description: str
+    preferences: tuple
+
+
+@dataclass(frozen=True)
+class CompiledDomain:
+    """Everything the runtime, verifiers, grammars and prompts need, frozen."""
+
+    spec_hash: str
+    entities: tuple
+    substances: tuple
+    tags: tuple  # ((name, description), ...)
+    categories: tuple
+    verb_groups: tuple  # ((group, (verbs...)), ...)
+    actions: tuple
+    components: tuple
+    styles: tuple
+    tasks: tuple
+    personas: tuple
+
+    @cached_property
+    def entity(self) -> dict:
+        """Entities by id."""
+        return {e.id: e for e in self.entities}
+
+    @cached_property
+    def substance(self) -> dict:
+        """Substances by id."""
+        return {s.id: s for s in self.substances}
+
+    @cached_property
+    def action(self) -> dict:
+        """Actions by id."""
+        return {a.id: a for a in self.actions}
+
+    @cached_property
+    def component(self) -> dict:
+        """Components by id."""
+        return {c.id: c for c in self.components}
+
+    @cached_property
+    def style(self) -> dict:
+        """Styles by id."""
+        return {s.id: s for s in self.styles}
+
+    @cached_property
+    def task(self) -> dict:
+        """Tasks by id."""
+        return {t.id: t for t in self.tasks}
+
+    @cached_property
+    def persona(self) -> dict:
+        """Personas by id."""
+        return {p.id: p for p in self.personas}
+
+    @cached_property
+    def verbs(self) -> dict:
+        """Verb -> group."""
+        return {v: g for g, vs in self.verb_groups for v in vs}
+
+    @cached_property
+    def groups(self) -> dict:
+        """Group name -> component ids (kinds, declared groups, `food`, `all`)."""
+        out: dict[str, list] = {"all": [], "food": []}
+        for c in self.components:
+            out["all"].append(c.id)
+            out.setdefault(c.kind, []).append(c.id)
+            if c.kind != "beverage":
+                out["food"].append(c.id)
+            for g in c.groups:
+                out.setdefault(g, []).append(c.id)
+        return {k: tuple(v) for k, v in out.items()}
+
+    def counts(self) -> dict:
+        """How many of each kind of thing the domain holds."""
+        kinds = [e.kind for e in self.entities]
+        return {"rooms": kinds.count("room"), "furniture": kinds.count("furniture"),
+                "movables": kinds.count("movable"), "substances": len(self.substances),
+                "actions": len(self.actions), "verbs": len(self.verbs), "tasks": len(self.tasks),
+                "components": len(self.components), "personas": len(self.personas),
+                "preferences": sum(len(p.preferences) for p in self.personas)}
+
+    def to_json(self) -> str:
+        """Serialise to JSON (the on-disk cache format)."""
+        return json.dumps(_to_data(self), separators=(",", ":"))
+
+    @staticmethod
+    def from_json(text: str) -> CompiledDomain:
+        """Rebuild a domain from `to_json` output."""
+        return _from_data(json.loads(text))
+
+
+_MODEL_TYPES = {c.__name__: c for c in (EntitySpec, Substance, Precondition, Effect, ActionSpec, Component,
+                                        Style, Task, Preference, Persona, CompiledDomain)}
+
+
+def _to_data(obj):
+    if type(obj).__name__ in _MODEL_TYPES:
+        out = {"_m": type(obj).__name__}
+        for f in fields(obj):
+            out[f.name] = _to_data(getattr(obj, f.name))
+        return out
+    if isinstance(obj, A.Node):
+        return A.to_data(obj)
+    if isinstance(obj, tuple | list):
+        return [_to_data(x) for x in obj]
+    return obj
+
+
+def _from_data(data):
+    if isinstance(data, dict):
+        if "_m" in data:
+            cls = _MODEL_TYPES[data["_m"]]
+            return cls(**{k: _from_data(v) for k, v in data.items() if k != "_m"})
+        if "_t" in data:
+            return A.from_data(data)
+        return {k: _from_data(v) for k, v in data.items()}
+    if isinstance(data, list):
+        return tuple(_from_data(x) for x in data)
+    return data
