@@ -95,6 +95,7 @@ class Rule(Node):
     scope: Scope | None
     expr: object
     source: str = ""
+    file: str = ""
 
 
 _TYPES = {cls.__name__: cls for cls in (ClsName, ClsAny, ClsAll, ClsNeg, ClsMod, Const, AnyOf, AllOf,

@@ -136,7 +136,7 @@ class Persona:
     preferences: tuple
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class CompiledDomain:
     """Everything the runtime, verifiers, grammars and prompts need, frozen."""
 

@@ -1,0 +1,100 @@
+"""The `adapt` command: validate specs, inspect scenes, play and replay episodes.
+
+Run `adapt --help` or `adapt COMMAND --help` for details.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+EPILOG = """\
+examples:
+  adapt validate spec                       check every spec file, one line per problem
+  adapt validate spec --format json         the same, as JSON for editors and CI
+  adapt schema --out schemas/               write the JSON Schemas for editor completion
+  adapt scene --seed 3 --json               the sampled scene for seed 3
+  adapt play --task eggs --persona juan     play an episode in the terminal
+  adapt replay --task eggs --persona juan --full-scene actions.txt --json
+"""
+
+
+def _cmd_validate(args) -> int:
+    from .compiler import compile_spec
+    from .compiler.diagnostics import render_all
+
+    domain, diags = compile_spec(args.spec_dirs)
+    if args.format == "json":
+        print(render_all(diags, "json"))
+    elif diags:
+        print(render_all(diags), file=sys.stderr if domain is None else sys.stdout)
+    if domain is None:
+        n = sum(d.severity == "error" for d in diags)
+        if args.format == "text":
+            print(f"{n} error(s)", file=sys.stderr)
+        return 1
+    if args.format == "text":
+        counts = ", ".join(f"{v} {k}" for k, v in domain.counts().items())
+        print(f"ok: {counts} (spec hash {domain.spec_hash})")
+    return 0
+
+
+def _cmd_schema(args) -> int:
+    from .compiler.loader import KINDS, schema
+
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    for kind in sorted(set(KINDS.values())):
+        (out / f"{kind}.schema.json").write_text(json.dumps(schema(kind), indent=2) + "\n")
+        print(out / f"{kind}.schema.json")
+    return 0
+
+
+def _add_validate(sub) -> None:
+    p = sub.add_parser("validate", help="check spec files and report every problem with file:line:col",
+                       description="Compile the spec directories and report every problem at once. "
+                                   "Exit 0 when clean, 1 on errors, 2 on usage errors.")
+    p.add_argument("spec_dirs", nargs="*", default=["spec"], help="spec directories (default: spec)")
+    p.add_argument("--format", choices=["text", "json"], default="text", help="output format")
+    p.set_defaults(func=_cmd_validate)
+
+
+def _add_schema(sub) -> None:
+    p = sub.add_parser("schema", help="write the JSON Schemas of the spec files (for editors)")
+    p.add_argument("--out", required=True, help="directory to write *.schema.json into")
+    p.set_defaults(func=_cmd_schema)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser for `adapt` and all subcommands."""
+    parser = argparse.ArgumentParser(
+        prog="adapt", description="ADAPT as data: validate specs, run the household simulator, "
+        "evaluate preference satisfaction.", epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    _add_validate(sub)
+    _add_schema(sub)
+    from . import cli_episode
+
+    cli_episode.add_commands(sub)
+    return parser
+
+
+def main(argv=None) -> int:
+    """Entry point of the `adapt` command."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return 2
+    try:
+        return args.func(args)
+    except KeyboardInterrupt:
+        return 130
+    except BrokenPipeError:
+        return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

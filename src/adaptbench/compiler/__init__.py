@@ -1,0 +1,118 @@
+"""The spec compiler: YAML specs -> diagnostics and one immutable `CompiledDomain`.
+
+    domain = load_domain("spec")                     # cached by content hash
+    domain, diagnostics = compile_spec(["spec"])     # every problem in one run
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+from pathlib import Path
+
+from .build import ADDERS, Draft
+from .checks import check_all
+from .diagnostics import Diagnostic, SpecError
+from .loader import load_file, spec_files, validate_schema
+from .model import CompiledDomain
+
+__all__ = ["CompiledDomain", "Diagnostic", "SpecError", "compile_spec", "load_domain", "spec_hash"]
+
+COMPILER_VERSION = "1"
+
+
+def _display(path: Path) -> str:
+    try:
+        return os.path.relpath(path)
+    except ValueError:  # pragma: no cover - other drive on Windows
+        return str(path)
+
+
+def spec_hash(spec_dirs) -> str:
+    """A content hash of every spec file (names and bytes) plus the compiler version."""
+    h = hashlib.sha256(COMPILER_VERSION.encode())
+    for kind, path in spec_files([Path(d) for d in spec_dirs]):
+        h.update(kind.encode() + b"\0" + path.name.encode() + b"\0" + path.read_bytes() + b"\0")
+    return h.hexdigest()[:16]
+
+
+def compile_spec(spec_dirs) -> tuple[CompiledDomain | None, list[Diagnostic]]:
+    """Compile spec directories; return the domain (None if any error) and all diagnostics."""
+    dirs = [Path(d) for d in spec_dirs]
+    draft = Draft()
+    for d in dirs:
+        if not d.is_dir():
+            draft.diags.append(Diagnostic(str(d), 1, 1, "S003", "spec directory not found"))
+    for kind, path in spec_files(dirs):
+        doc, diags = load_file(path, _display(path))
+        draft.diags.extend(diags)
+        if doc is None:
+            continue
+        schema_diags = validate_schema(doc, kind)
+        draft.diags.extend(schema_diags)
+        if not schema_diags:
+            ADDERS[kind](draft, doc)
+    check_all(draft)
+    errors = [d for d in draft.diags if d.severity == "error"]
+    if errors:
+        return None, sorted(draft.diags)
+    return _freeze(draft, spec_hash(dirs)), sorted(draft.diags)
+
+
+def _unique(items):
+    seen, out = set(), []
+    for x in items:
+        if x.id not in seen:
+            seen.add(x.id)
+            out.append(x)
+    return tuple(out)
+
+
+def _freeze(draft: Draft, digest: str) -> CompiledDomain:
+    return CompiledDomain(
+        spec_hash=digest,
+        entities=_unique(draft.entities),
+        substances=_unique(draft.substances),
+        tags=tuple(sorted(draft.tags.items())),
+        categories=tuple(sorted(draft.categories.items())),
+        verb_groups=tuple((g, tuple(vs)) for g, vs in draft.verb_groups.items()),
+        actions=_unique(draft.actions),
+        components=_unique(draft.components),
+        styles=_unique(draft.styles),
+        tasks=_unique(draft.tasks),
+        personas=tuple(sorted(_unique(draft.personas), key=lambda p: (p.number, p.id))),
+    )
+
+
+def cache_dir() -> Path:
+    """Where compiled domains are cached ($ADAPT_CACHE, else $XDG_CACHE_HOME/adaptbench)."""
+    env = os.environ.get("ADAPT_CACHE")
+    if env:
+        return Path(env)
+    base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
+    return Path(base) / "adaptbench"
+
+
+def load_domain(spec_dir="spec", use_cache: bool = True) -> CompiledDomain:
+    """The compiled domain for `spec_dir` (cached on disk by content hash); SpecError on errors."""
+    dirs = [spec_dir] if isinstance(spec_dir, str | Path) else list(spec_dir)
+    digest = spec_hash(dirs)
+    path = cache_dir() / f"domain-{digest}.json"
+    if use_cache and path.exists():
+        return CompiledDomain.from_json(path.read_text())
+    domain, diags = compile_spec(dirs)
+    if domain is None:
+        raise SpecError(diags)
+    if use_cache:
+        _write_cache(path, domain)
+    return domain
+
+
+def _write_cache(path: Path, domain: CompiledDomain) -> None:
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_suffix(".tmp")
+        tmp.write_text(domain.to_json())
+        tmp.replace(path)
+    except OSError:  # a read-only cache is not an error
+        pass

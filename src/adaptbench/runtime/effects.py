@@ -1,0 +1,236 @@
+"""The effect primitives action specs are written in. Each one changes the world and may return
+an observation that replaces the action's `success` text (searches, questions)."""
+
+from __future__ import annotations
+
+import re
+
+from ..compiler.model import EntitySpec
+from .actions import ActionFailed, Ref
+from .observe import found
+from .world import World
+
+
+def _arg(params: dict, b: dict, name: str):
+    """The value of an effect parameter: a bound slot for `{slot}`, else the literal text."""
+    value = params.get(name)
+    if value is None:
+        return None
+    m = re.fullmatch(r"\{(\w+)\}", value)
+    return b[m.group(1)] if m else value
+
+
+def _ent(params, b, name) -> str:
+    ref = _arg(params, b, name)
+    return ref.value if isinstance(ref, Ref) else ref
+
+
+def reveal_in(world: World, params: dict, b: dict, ctx) -> str:
+    """Search a place: everything in it (at any depth) becomes known."""
+    place = _ent(params, b, "place")
+    new = [e for e in world.descendants(place)]
+    world.known.update(new)
+    for e in new + [place]:
+        world.known_contents.update(world.content_names(e))
+    if not new:
+        return f"Found nothing in/on {place}"
+    return found(world, new)
+
+
+_PLURAL = [("ies", "y"), ("oes", "o"), ("ches", "ch"), ("shes", "sh"), ("ses", "s"), ("s", "")]
+
+
+def _stems(word: str) -> set:
+    out = {word}
+    for suffix, repl in _PLURAL:
+        if word.endswith(suffix) and len(word) > len(suffix) + 2:
+            out.add(word[: -len(suffix)] + repl)
+    return out
+
+
+def _query_words(query: str) -> set:
+    words = re.findall(r"[a-z]+", query.lower().replace("_", " "))
+    words = [w for w in words if w not in ("a", "an", "the", "some", "of")]
+    key = "_".join(words)
+    return _stems(key) | ({s for w in words for s in _stems(w)} if len(words) == 1 else set())
+
+
+def _matches_query(world: World, eid: str, keys: set) -> bool:
+    spec = world.specs[eid]
+    if spec.category in keys or keys & set(spec.tags) - {"movable", "container", "source", "edible", "food"}:
+        return True
+    words = {s for w in re.findall(r"[a-z]+", spec.description.lower()) for s in _stems(w)}
+    if keys & words or eid.rsplit("_", 1)[0] in keys:
+        return True
+    for name in world.content_names(eid):
+        sub = world.domain.substance.get(name)
+        if name in keys or (sub and (sub.category in keys or keys & set(sub.tags) - {"edible", "food"})):
+            return True
+    return False
+
+
+def reveal_category(world: World, params: dict, b: dict, ctx) -> str:
+    """Look for a category in the whole house; matches and their holders become known."""
+    keys = _query_words(_arg(params, b, "query"))
+    hits = [e for e, s in world.specs.items() if s.kind == "movable" and _matches_query(world, e, keys)]
+    new = []
+    for e in sorted(hits, key=_natural):
+        for a in [*reversed(list(world.ancestors(e))), e]:
+            if a not in world.known and a not in new:
+                new.append(a)
+    world.known.update(new)
+    for e in new:
+        world.known_contents.update(world.content_names(e))
+    if not hits:
+        return f"Could not find any {_arg(params, b, 'query')}"
+    return found(world, [e for e in new] or sorted(hits, key=_natural))
+
+
+def _natural(eid: str):
+    base, _, num = eid.rpartition("_")
+    return (base, int(num)) if num.isdigit() else (eid, -1)
+
+
+def set_state(world: World, params: dict, b: dict, ctx) -> None:
+    """Open/close or switch an entity on/off."""
+    eid, state = _ent(params, b, "target"), params["state"]
+    states = world.state.setdefault(eid, set())
+    flip = {"open": "closed", "closed": "open", "on": "off", "off": "on"}
+    states.discard(flip[state])
+    states.add(state)
+    if state == "off":
+        states.discard("on")
+
+
+def _heat_node(world: World, node, vessels) -> None:
+    node.heated.append(world.step)
+    node.vessels.update(vessels)
+
+
+def _heat_entity(world: World, eid: str) -> None:
+    vessels = [eid, *world.ancestors(eid)]
+    if eid in world.nodes:
+        _heat_node(world, world.nodes[eid], vessels)
+    for n in world.contents.get(eid, ()):
+        _heat_node(world, n, vessels)
+
+
+def heat(world: World, params: dict, b: dict, ctx) -> None:
+    """Heat one thing: an object, a container's contents, or one content."""
+    ref = _arg(params, b, "target")
+    if ref.kind == "content":
+        vessels = [ref.holder, *world.ancestors(ref.holder)]
+        for n in world.contents.get(ref.holder, ()):
+            if n.name == ref.value:
+                _heat_node(world, n, vessels)
+        return
+    _heat_entity(world, ref.value)
+    for d in world.descendants(ref.value):
+        _heat_entity(world, d)
+
+
+def heat_all_in(world: World, params: dict, b: dict, ctx) -> None:
+    """Heat everything in or on an appliance (turning it on)."""
+    eid = _ent(params, b, "target")
+    for d in [eid, *world.descendants(eid)]:
+        _heat_entity(world, d)
+
+
+def _into(world: World, target: str, what: str) -> None:
+    if not world.is_container(target):
+        raise ActionFailed(f"{target} is not a container: {what} must go into a container")
+
+
+def move(world: World, params: dict, b: dict, ctx) -> None:
+    """Move an object, or contents, to a target."""
+    ref, target = _arg(params, b, "item"), _ent(params, b, "target")
+    if ref.kind == "entity":
+        world.relocate(ref.value, target)
+        return
+    _into(world, target, ref.value)
+    world.put_contents(target, world.take_contents(ref.holder, ref.value))
+
+
+def pour(world: World, params: dict, b: dict, ctx) -> None:
+    """Pour a content from one container into another."""
+    ref, target = _arg(params, b, "item"), _ent(params, b, "target")
+    _into(world, target, ref.value)
+    world.put_contents(target, world.take_contents(ref.holder, ref.value))
+
+
+def _applies(world: World, flag: str | None, verb: str) -> bool:
+    if flag is None:
+        return False
+    return flag == "always" or world.domain.verbs.get(verb) == flag
+
+
+def combine(world: World, params: dict, b: dict, ctx) -> None:
+    """Turn everything edible in a container into one result content (mix, cook, freeform)."""
+    container, result, verb = _ent(params, b, "container"), _arg(params, b, "result"), _arg(params, b, "verb")
+    inputs = list(world.contents.get(container, ()))
+    for child in list(world.children.get(container, ())):
+        if child in world.nodes:
+            inputs.append(world.nodes[child])
+            world.remove(child)
+    if not inputs:
+        raise ActionFailed(f"{container} holds nothing to {verb} (endless supplies must be poured out first)")
+    node = world.new_node(result, None, frozenset(("edible", "food")), tuple(inputs), verb)
+    node.vessels.update([container, *world.ancestors(container)])
+    node.arrived = min(n.arrived for n in inputs)
+    world.contents[container] = [node]
+    world.known_contents.add(result)
+    if _applies(world, params.get("heat"), verb):
+        _heat_node(world, node, [container, *world.ancestors(container)])
+
+
+def transform(world: World, params: dict, b: dict, ctx) -> None:
+    """Turn one thing into a result (chop, crack, peel ...): an object stays an object."""
+    ref, result, verb = _arg(params, b, "item"), _arg(params, b, "result"), _arg(params, b, "verb")
+    if ref.kind == "entity":
+        _transform_object(world, ref.value, result, verb, params)
+        return
+    old = world.take_contents(ref.holder, ref.value)
+    node = world.new_node(result, None, frozenset(("edible", "food")), tuple(old), verb)
+    _mark(world, node, params, verb, ref.holder)
+    node.arrived = min(n.arrived for n in old)
+    world.contents.setdefault(ref.holder, []).append(node)
+    world.known_contents.add(result)
+
+
+def _transform_object(world: World, eid: str, result: str, verb: str, params: dict) -> None:
+    if eid not in world.nodes:
+        raise ActionFailed(f"{eid} is not edible")
+    where = world.parent[eid]
+    old = world.nodes[eid]
+    node = world.new_node(result, None, frozenset(("edible", "food")), (old,), verb)
+    node.arrived = old.arrived
+    _mark(world, node, params, verb, where)
+    desc = f"{verb} {world.specs[eid].description}"
+    spec = EntitySpec(result, "movable", desc, "result", ("edible", "food", "movable"), where)
+    world.remove(eid)
+    world.add_entity(spec, node, where)
+
+
+def _mark(world: World, node, params: dict, verb: str, where: str) -> None:
+    if _applies(world, params.get("cut"), verb):
+        node.cut = True
+    if _applies(world, params.get("heat"), verb):
+        _heat_node(world, node, [where, *world.ancestors(where)])
+    node.vessels.update([where, *world.ancestors(where)])
+
+
+def ask(world: World, params: dict, b: dict, ctx) -> str:
+    """Ask the user a question; the reply is recorded on the step."""
+    world.questions += 1
+    ctx["reply"] = ctx["user"](_arg(params, b, "question"), world) if ctx.get("user") else ""
+    return ""
+
+
+def done(world: World, params: dict, b: dict, ctx) -> None:
+    """End the episode."""
+    world.done = True
+
+
+PRIMITIVES = {"reveal_in": reveal_in, "reveal_category": reveal_category, "set_state": set_state,
+              "heat": heat, "heat_all_in": heat_all_in, "move": move, "pour": pour, "combine": combine,
+              "transform": transform, "ask": ask, "done": done}

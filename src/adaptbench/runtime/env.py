@@ -1,0 +1,135 @@
+"""`Env`: one episode of a task for a persona in a scene — reset, step, evaluate."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+from ..compiler.model import CompiledDomain
+from .actions import ActionFailed, Ref, bind, compile_check, compile_templates, match, resolve_holders
+from .effects import PRIMITIVES
+from .observe import layout
+from .scene import sample_scene
+from .world import Event, World
+
+MAX_STEPS = 50
+REPEAT_LIMIT = 3  # the same action 3 times within the last 4 steps fails
+REPEAT_WINDOW = 4
+
+
+@dataclass(frozen=True)
+class StepResult:
+    """What one step returned."""
+
+    observation: str
+    ok: bool
+    done: bool
+    reply: str = ""
+
+
+@lru_cache(maxsize=8)
+def _compiled(domain: CompiledDomain):
+    templates = compile_templates(domain)
+    checks = {a.id: [(compile_check(p.check, dict(a.slots)), p.fail) for p in a.preconditions]
+              for a in domain.actions}
+    return templates, checks
+
+
+class Env:
+    """An ADAPT episode. `user` answers questions: a callable `(question, world) -> str` or an
+    object with `.answer(question, world)`."""
+
+    def __init__(self, domain: CompiledDomain, task: str, persona: str | None = None, seed: int | None = 0,
+                 full_scene: bool = False, user=None, max_steps: int = MAX_STEPS):
+        if task not in domain.task:
+            raise KeyError(f"unknown task '{task}' (tasks: {', '.join(domain.task)})")
+        if persona is not None and persona not in domain.persona:
+            raise KeyError(f"unknown persona '{persona}' (personas: {', '.join(domain.persona)})")
+        self.domain = domain
+        self.task = domain.task[task]
+        self.persona = domain.persona[persona] if persona else None
+        self.scene = sample_scene(domain, seed, full_scene)
+        self.user = getattr(user, "answer", user)
+        self.max_steps = max_steps
+        self._templates, self._checks = _compiled(domain)
+        self.world: World = World(domain, self.scene)
+
+    def reset(self) -> str:
+        """Start the episode again on the same scene; returns the layout the agent starts with."""
+        self.world = World(self.domain, self.scene)
+        return layout(self.world)
+
+    @property
+    def done(self) -> bool:
+        """Whether the episode has ended (Declare Done or the step limit)."""
+        return self.world.done or self.world.step >= self.max_steps
+
+    def step(self, text: str) -> StepResult:
+        """Execute one action string; a failure is an observation, never an exception."""
+        w = self.world
+        if self.done:
+            return StepResult("The episode is over.", False, True)
+        text = _normalise(text)
+        w.step += 1
+        ctx = {"user": self.user, "reply": ""}
+        try:
+            action, args, obs = self._run(text, ctx)
+            ok = True
+        except ActionFailed as exc:
+            action, args, obs, ok = None, {}, str(exc), False
+        w.trace.append(Event(w.step, text, action, ok, obs, args, ctx["reply"]))
+        return StepResult(obs, ok, self.done, ctx["reply"])
+
+    def _run(self, text: str, ctx: dict):
+        w = self.world
+        recent = [e.text for e in w.trace[-(REPEAT_WINDOW - 1):]]
+        if recent.count(text) >= REPEAT_LIMIT - 1:
+            raise ActionFailed(f"You have tried '{text}' too many times in a row; try something else")
+        hit = match(self._templates, text)
+        if hit is None:
+            raise ActionFailed(_unknown_action(self.domain, text))
+        action, raw = hit
+        b = bind(w, action, raw)
+        resolve_holders(w, action, b)
+        for check, fail in self._checks[action.id]:
+            if not check(w, b):
+                raise ActionFailed(_fill(fail, b))
+        obs = None
+        for eff in action.effects:
+            out = PRIMITIVES[eff.primitive](w, dict(eff.params), b, ctx)
+            obs = out if out is not None else obs
+        for v in b.values():
+            if isinstance(v, Ref) and v.kind == "entity":
+                w.used.add(v.value)
+        args = {k: str(v) for k, v in b.items()}
+        return action.id, args, obs if obs is not None else _fill(action.success, b)
+
+    def evaluate(self):
+        """Verdicts for the persona's preferences on the episode so far."""
+        from .verify import evaluate
+
+        return evaluate(self.domain, self.world, self.task, self.persona)
+
+
+def _normalise(text: str) -> str:
+    text = text.strip()
+    if text.lower().startswith("action:"):
+        text = text[7:].strip()
+    return text.rstrip(".").strip() if not text.endswith('"') else text
+
+
+def _fill(template: str, b: dict) -> str:
+    try:
+        return template.format(**{k: str(v) for k, v in b.items()})
+    except (KeyError, IndexError):
+        return template
+
+
+def _unknown_action(domain: CompiledDomain, text: str) -> str:
+    import difflib
+
+    examples = [a.example for a in domain.actions if a.example]
+    close = difflib.get_close_matches(text, examples, n=1, cutoff=0.3)
+    hint = f" (closest: '{close[0]}')" if close else ""
+    return f"I don't understand '{text}'{hint}. Valid forms: " + "; ".join(
+        f for a in domain.actions for f in a.forms)

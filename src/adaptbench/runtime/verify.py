@@ -1,0 +1,386 @@
+"""Preference verifiers: rules evaluated on the episode to satisfied / violated / inapplicable.
+
+Each verdict carries a reason and the steps that decided it. A preference about a component the
+task has but the episode did not complete is violated (the paper's rule).
+Score = satisfied / (satisfied + violated).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+from ..compiler import ast as A
+from ..compiler.model import CompiledDomain, Persona, Task
+from .classes import entity_matcher, node_matcher, render
+from .dishes import Dish, served_dishes
+from .world import Node, World
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """A predicate's result, why, and the steps that decided it."""
+
+    ok: bool
+    why: str
+    steps: tuple = ()
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """One preference's verdict."""
+
+    id: str
+    text: str
+    verdict: str  # satisfied | violated | inapplicable
+    reason: str
+    steps: tuple = ()
+
+
+@dataclass(frozen=True)
+class Evaluation:
+    """All verdicts of an episode, the satisfaction rate and the questions asked."""
+
+    verdicts: tuple
+    questions: int
+    completed: tuple  # components of the task that were completed
+
+    @property
+    def satisfied(self) -> int:
+        """Number of satisfied preferences."""
+        return sum(v.verdict == "satisfied" for v in self.verdicts)
+
+    @property
+    def violated(self) -> int:
+        """Number of violated preferences."""
+        return sum(v.verdict == "violated" for v in self.verdicts)
+
+    @property
+    def satisfaction_rate(self) -> float | None:
+        """p+ / (p+ + p-), or None when no preference applied."""
+        n = self.satisfied + self.violated
+        return self.satisfied / n if n else None
+
+    def as_dict(self) -> dict:
+        """JSON-friendly form."""
+        return {"preferences": [{"id": v.id, "text": v.text, "verdict": v.verdict, "reason": v.reason,
+                                 "steps": list(v.steps)} for v in self.verdicts],
+                "satisfaction_rate": self.satisfaction_rate, "questions": self.questions,
+                "completed": list(self.completed)}
+
+
+class Ctx:
+    """Everything a rule can look at, computed once per evaluation."""
+
+    def __init__(self, domain: CompiledDomain, world: World, task: Task):
+        self.domain, self.world, self.task = domain, world, task
+        self.task_components = set(task.components)
+        self.dishes = served_dishes(world)
+        for d in self.dishes:
+            for c in domain.components:
+                if compiled(domain, c.completion)(self, [d]).ok:
+                    d.completes.add(c.id)
+
+    def expand(self, name: str) -> set:
+        """Component ids a component or group name stands for."""
+        return set(self.domain.groups.get(name, (name,)))
+
+    def subject(self, name: str, it: list) -> list:
+        """The dishes a subject word means."""
+        if name == "it":
+            return it
+        if name == "meal":
+            return self.dishes
+        if name == "sides":
+            return [d for d in self.dishes if not d.completes & self.task_components]
+        comps = self.expand(name) & self.task_components or self.expand(name)
+        return [d for d in self.dishes if d.completes & comps]
+
+
+_COMPILED: dict = {}
+
+
+def compiled(domain: CompiledDomain, rule: A.Rule, part: str = "expr"):
+    """A rule's expression (or its scope condition, `part="cond"`) compiled to `f(ctx, it) -> Outcome`.
+
+    Cached by rule identity: compiled domains are immutable and long-lived.
+    """
+    key = (id(rule), part)
+    hit = _COMPILED.get(key)
+    if hit is None or hit[0] is not rule:
+        node = rule.expr if part == "expr" else rule.scope.cond
+        hit = (rule, _expr(node, domain))
+        _COMPILED[key] = hit
+    return hit[1]
+
+
+def _expr(node, domain):
+    if isinstance(node, A.Const):
+        return lambda ctx, it: Outcome(node.value, "always" if node.value else "never")
+    if isinstance(node, A.Not):
+        f = _expr(node.item, domain)
+
+        def neg(ctx, it):
+            r = f(ctx, it)
+            return Outcome(not r.ok, ("not: " if r.ok else "") + r.why, r.steps)
+        return neg
+    if isinstance(node, A.AllOf):
+        fs = [_expr(x, domain) for x in node.items]
+        return lambda ctx, it: _all(f(ctx, it) for f in fs)
+    if isinstance(node, A.AnyOf):
+        fs = [_expr(x, domain) for x in node.items]
+        return lambda ctx, it: _any([f(ctx, it) for f in fs])
+    if isinstance(node, A.IfElse):
+        c, t, e = (_expr(x, domain) for x in (node.cond, node.then, node.other))
+        return lambda ctx, it: t(ctx, it) if c(ctx, it).ok else e(ctx, it)
+    return _PREDS[node.op](node, domain)
+
+
+def _all(outcomes) -> Outcome:
+    steps, whys = [], []
+    for r in outcomes:
+        if not r.ok:
+            return r
+        steps.extend(r.steps)
+        whys.append(r.why)
+    return Outcome(True, "; ".join(w for w in whys if w), tuple(sorted(set(steps))))
+
+
+def _any(outcomes: list) -> Outcome:
+    for r in outcomes:
+        if r.ok:
+            return r
+    return Outcome(False, " and ".join(r.why for r in outcomes if r.why),
+                   tuple(sorted({s for r in outcomes for s in r.steps})))
+
+
+def _label(dishes: list) -> str:
+    return ", ".join(d.key for d in dishes) or "nothing served"
+
+
+def _matches(dishes: list, f):
+    return [(d, n) for d in dishes for n, h, c in d.leaves if f(n, h, c)]
+
+
+def _p_has(node: A.Pred, domain):
+    f, text = node_matcher(node.args[0]), render(node.args[0])
+
+    def has(ctx, it):
+        dishes = ctx.subject(node.subject, it)
+        hits = _matches(dishes, f)
+        if hits:
+            d, n = hits[0]
+            return Outcome(True, f"{d.key} has {n.name} ({text})", tuple(sorted({x.arrived for _, x in hits})))
+        return Outcome(False, f"{_label(dishes)} has no {text}")
+    return has
+
+
+def _p_has_no(node: A.Pred, domain):
+    f, text = node_matcher(node.args[0]), render(node.args[0])
+
+    def has_no(ctx, it):
+        dishes = ctx.subject(node.subject, it)
+        hits = _matches(dishes, f)
+        if hits:
+            d, n = hits[0]
+            return Outcome(False, f"{d.key} has {n.name} ({text})", tuple(sorted({x.arrived for _, x in hits})))
+        return Outcome(True, f"{_label(dishes)} has no {text}")
+    return has_no
+
+
+def _p_has_only(node: A.Pred, domain):
+    f, text = node_matcher(node.args[0]), render(node.args[0])
+
+    def has_only(ctx, it):
+        dishes = ctx.subject(node.subject, it)
+        bad = [(d, n) for d in dishes for n, h, c in d.leaves if not f(n, h, c)]
+        if bad:
+            d, n = bad[0]
+            return Outcome(False, f"{d.key} has {n.name}, which is not {text}", (n.arrived,))
+        return Outcome(True, f"{_label(dishes)} has only {text}")
+    return has_only
+
+
+_CMP = {">=": int.__ge__, "<=": int.__le__, "==": int.__eq__, ">": int.__gt__, "<": int.__lt__}
+
+
+def _p_count(node: A.Pred, domain):
+    cls, op, n = node.args
+    f, text, cmp = node_matcher(cls), render(cls), _CMP[op]
+
+    def count(ctx, it):
+        dishes = ctx.subject(node.subject, it)
+        kinds = sorted({x.category or x.name for _, x in _matches(dishes, f)})
+        ok = cmp(len(kinds), n)
+        return Outcome(ok, f"{len(kinds)} kind(s) of {text} ({', '.join(kinds) or 'none'}), want {op} {n}")
+    return count
+
+
+def _style_ok(ctx: Ctx, dish: Dish, style) -> bool:
+    if style.rule is not None:
+        return compiled(ctx.domain, style.rule)(ctx, [dish]).ok
+    for n in dish.derived:
+        name = n.name.lower()
+        if any(w in name for w in style.words) or n.verb in style.verbs:
+            return True
+    return False
+
+
+def _p_is(node: A.Pred, domain):
+    names = [n.name for n in A.walk(node.args[0]) if isinstance(n, A.ClsName)]
+    text = " or ".join(names)
+
+    def is_(ctx, it):
+        dishes = ctx.subject(node.subject, it)
+        styles = [ctx.domain.style[s] for s in names]
+        bad = [d for d in dishes if not any(_style_ok(ctx, d, s) for s in styles)]
+        if bad or not dishes:
+            return Outcome(False, f"{_label(bad or dishes)} is not {text}")
+        return Outcome(True, f"{_label(dishes)} is {text}")
+    return is_
+
+
+def _every_dish(node: A.Pred, test, describe: str):
+    def check(ctx, it):
+        dishes = ctx.subject(node.subject, it)
+        bad = [d for d in dishes if not test(ctx, d)]
+        if bad or not dishes:
+            return Outcome(False, f"{_label(bad or dishes)} not {describe}", tuple(d.served_step for d in bad))
+        return Outcome(True, f"{_label(dishes)} {describe}", tuple(d.served_step for d in dishes))
+    return check
+
+
+def _p_served_at(node: A.Pred, domain):
+    f = entity_matcher(node.args[0])
+    return _every_dish(node, lambda ctx, d: f(ctx.world, d.place), f"served at {render(node.args[0])}")
+
+
+def _p_served_in(node: A.Pred, domain):
+    f = entity_matcher(node.args[0])
+    return _every_dish(node, lambda ctx, d: d.container is not None and f(ctx.world, d.container),
+                       f"served in {render(node.args[0])}")
+
+
+def _p_made_in(node: A.Pred, domain):
+    f = entity_matcher(node.args[0])
+    return _every_dish(node, lambda ctx, d: any(f(ctx.world, v) for v in d.vessels),
+                       f"made in {render(node.args[0])}")
+
+
+def _p_cooked_in(node: A.Pred, domain):
+    f = entity_matcher(node.args[0])
+
+    def test(ctx, d):
+        pans = [v for v in d.vessels if v in ctx.world.specs and "cookware" in ctx.world.specs[v].tags]
+        return bool(pans) and all(f(ctx.world, v) for v in pans)
+    return _every_dish(node, test, f"cooked in {render(node.args[0])}")
+
+
+def _first(d: Dish, f) -> int | None:
+    steps = [n.arrived for n, h, c in d.leaves if f(n, h, c)]
+    return min(steps) if steps else None
+
+
+def _p_adds_before(node: A.Pred, domain):
+    fa, fb = node_matcher(node.args[0]), node_matcher(node.args[1])
+    ta, tb = render(node.args[0]), render(node.args[1])
+
+    def test(ctx, d):
+        a, b = _first(d, fa), _first(d, fb)
+        return a is not None and b is not None and a < b
+    return _every_dish(node, test, f"with {ta} added before {tb}")
+
+
+def _p_served_before(node: A.Pred, domain):
+    def check(ctx, it):
+        first, then = ctx.subject(node.subject, it), ctx.subject(node.args[0], it)
+        if not first or not then:
+            return Outcome(False, f"nothing served as {node.subject if not first else node.args[0]}")
+        a, b = max(d.served_step for d in first), min(d.served_step for d in then)
+        why = f"{node.subject} served by step {a}, {node.args[0]} from step {b}"
+        return Outcome(a < b, why, (a, b))
+    return check
+
+
+def _p_available(node: A.Pred, domain):
+    ent, item, text = entity_matcher(node.args[0]), node_matcher(node.args[0]), render(node.args[0])
+
+    def check(ctx, it):
+        w = ctx.world
+        ok = any(ent(w, e) for e in w.specs) or any(
+            item(_substance_node(ctx.domain, s), False, False) for srcs in w.sources.values() for s in srcs)
+        return Outcome(ok, f"{text} is {'' if ok else 'not '}available")
+    return check
+
+
+@lru_cache(maxsize=1024)
+def _substance_node(domain: CompiledDomain, sid: str) -> Node:
+    s = domain.substance[sid]
+    return Node(0, sid, s.category, frozenset(s.tags))
+
+
+def _p_uses(node: A.Pred, domain):
+    f, text = entity_matcher(node.args[0]), render(node.args[0])
+
+    def check(ctx, it):
+        hits = sorted(e for e in ctx.world.used if f(ctx.world, e))
+        steps = tuple(ev.step for ev in ctx.world.trace if ev.ok and set(ev.args.values()) & set(hits))
+        return Outcome(bool(hits), f"used {', '.join(hits)}" if hits else f"never used {text}", steps)
+    return check
+
+
+def _p_task_has(node: A.Pred, domain):
+    name = node.args[0].name
+
+    def check(ctx, it):
+        ok = bool(ctx.expand(name) & ctx.task_components)
+        return Outcome(ok, f"the task {'has' if ok else 'has no'} {name}")
+    return check
+
+
+def _p_made(node: A.Pred, domain):
+    name = node.args[0].name
+
+    def check(ctx, it):
+        comps = ctx.expand(name)
+        hits = [d for d in ctx.dishes if d.completes & comps]
+        return Outcome(bool(hits), f"{name} {'served in ' + _label(hits) if hits else 'was not served'}",
+                       tuple(d.served_step for d in hits))
+    return check
+
+
+_PREDS = {"has": _p_has, "has_no": _p_has_no, "has_only": _p_has_only, "count": _p_count, "is": _p_is,
+          "served_at": _p_served_at, "served_in": _p_served_in, "made_in": _p_made_in,
+          "cooked_in": _p_cooked_in, "adds_before": _p_adds_before, "served_before": _p_served_before,
+          "available": _p_available, "uses": _p_uses, "task_has": _p_task_has, "made": _p_made}
+
+
+# ------------------------------------------------------------------ preferences
+def verdict(ctx: Ctx, pref) -> Verdict:
+    """Evaluate one preference on an evaluation context."""
+    rule = pref.rule
+    targets = rule.scope.targets if rule.scope else ("all",)
+    comps = [c for c in ctx.task.components if any(c in ctx.expand(t) for t in targets)]
+    if not comps:
+        return Verdict(pref.id, pref.text, "inapplicable", f"the task has no {' or '.join(targets)}")
+    if rule.scope is not None and rule.scope.cond is not None:
+        cond = compiled(ctx.domain, rule, "cond")(ctx, [])
+        if not cond.ok:
+            return Verdict(pref.id, pref.text, "inapplicable", cond.why)
+    f = compiled(ctx.domain, rule)
+    for c in comps:
+        dishes = [d for d in ctx.dishes if c in d.completes]
+        if not dishes:
+            return Verdict(pref.id, pref.text, "violated", f"{c} was not completed")
+        r = f(ctx, dishes)
+        if not r.ok:
+            return Verdict(pref.id, pref.text, "violated", r.why, r.steps)
+    return Verdict(pref.id, pref.text, "satisfied", r.why, r.steps)
+
+
+def evaluate(domain: CompiledDomain, world: World, task: Task, persona: Persona | None) -> Evaluation:
+    """Evaluate every preference of `persona` on the episode in `world`."""
+    ctx = Ctx(domain, world, task)
+    verdicts = tuple(verdict(ctx, p) for p in persona.preferences) if persona else ()
+    completed = tuple(c for c in task.components if any(c in d.completes for d in ctx.dishes))
+    return Evaluation(verdicts, world.questions, completed)

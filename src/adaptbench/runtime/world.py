@@ -1,0 +1,201 @@
+"""World state during an episode: where everything is, what containers hold, and provenance.
+
+Every edible thing is a provenance `Node`: a movable object (egg_0), a portion of a substance
+(whole_milk poured from milk_0), or a result of an action (`to get scrambled_eggs`) whose
+`inputs` are the nodes it was made from. Nodes record when they were heated and cut, in which
+vessels, and the last step they arrived in a container, which is what the verifiers query.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from ..compiler.model import CompiledDomain, EntitySpec
+from .scene import Scene
+
+
+class Node:
+    """One edible thing's provenance record (mutable during the episode)."""
+
+    __slots__ = ("nid", "name", "category", "tags", "inputs", "verb", "created", "heated", "cut",
+                 "vessels", "arrived", "entity")
+
+    def __init__(self, nid, name, category, tags, inputs=(), verb=None, created=0, entity=None):
+        self.nid = nid
+        self.name = name
+        self.category = category
+        self.tags = tags
+        self.inputs = inputs
+        self.verb = verb
+        self.created = created
+        self.heated: list = []  # steps at which it was heated
+        self.cut = False
+        self.vessels: set = set()  # entity ids it was heated or made in
+        self.arrived = created  # last step it was put into a container
+        self.entity = entity  # the object id when the node is a movable object
+
+    def __repr__(self) -> str:
+        return f"Node({self.name}#{self.nid})"
+
+
+@dataclass
+class Event:
+    """One step of the trace."""
+
+    step: int
+    text: str
+    action: str | None
+    ok: bool
+    observation: str
+    args: dict = field(default_factory=dict)
+    reply: str = ""
+
+
+class World:
+    """The mutable state of one episode over a scene of a compiled domain."""
+
+    def __init__(self, domain: CompiledDomain, scene: Scene):
+        self.domain = domain
+        self.scene = scene
+        self.specs: dict[str, EntitySpec] = {e: domain.entity[e] for e in scene.present}
+        self.parent: dict[str, str | None] = dict(scene.location)
+        self.children: dict[str, list] = {e: [] for e in scene.present}
+        for e, loc in scene.location:
+            if loc is not None:
+                self.children[loc].append(e)
+        self.sources: dict[str, tuple] = {e: self.specs[e].contents for e in scene.present
+                                          if self.specs[e].contents}
+        self.contents: dict[str, list] = {}
+        self.state: dict[str, set] = {}
+        self.arrived: dict[str, int] = {}
+        self.nodes: dict[str, Node] = {}  # edible objects' nodes
+        self.known: set = {e for e in scene.present if self.specs[e].kind != "movable"}
+        self.known_contents: set = {c for e in self.known for c in self.specs[e].contents}
+        self.used: set = set()
+        self.step = 0
+        self.trace: list[Event] = []
+        self.questions = 0
+        self.done = False
+        self._nid = 0
+        for e in scene.present:
+            spec = self.specs[e]
+            if "edible" in spec.tags:
+                self.nodes[e] = self.new_node(e, spec.category, frozenset(spec.tags), entity=e)
+
+    # ---- nodes
+    def new_node(self, name, category, tags, inputs=(), verb=None, entity=None) -> Node:
+        """Create a provenance node at the current step."""
+        self._nid += 1
+        return Node(self._nid, name, category, tags, inputs, verb, self.step, entity)
+
+    def portion(self, substance: str) -> Node:
+        """A fresh portion of a substance taken from an endless source."""
+        s = self.domain.substance[substance]
+        return self.new_node(substance, s.category, frozenset(s.tags))
+
+    # ---- queries
+    def exists(self, eid: str) -> bool:
+        """Whether entity `eid` is in the world now."""
+        return eid in self.specs
+
+    def tags(self, eid: str) -> tuple:
+        """The tags of an entity."""
+        return self.specs[eid].tags
+
+    def is_container(self, eid: str) -> bool:
+        """Whether things can be put in or on `eid`."""
+        return "container" in self.specs[eid].tags
+
+    def ancestors(self, eid: str):
+        """Holders of `eid`, innermost first."""
+        loc = self.parent.get(eid)
+        while loc is not None:
+            yield loc
+            loc = self.parent.get(loc)
+
+    def room_of(self, eid: str) -> str | None:
+        """The room an entity is in."""
+        if self.specs[eid].kind == "room":
+            return eid
+        for a in self.ancestors(eid):
+            if self.specs[a].kind == "room":
+                return a
+        return None
+
+    def holders_of(self, name: str) -> list:
+        """Known entities holding content `name` (as a portion or as an endless source)."""
+        out = []
+        for eid in self.known:
+            if name in self.sources.get(eid, ()) or any(n.name == name for n in self.contents.get(eid, ())):
+                out.append(eid)
+        return sorted(out)
+
+    def has_content(self, holder: str, name: str) -> bool:
+        """Whether `holder` holds content `name`."""
+        return name in self.sources.get(holder, ()) or any(n.name == name for n in self.contents.get(holder, ()))
+
+    def content_names(self, eid: str) -> list:
+        """Names of everything `eid` holds as contents, sources first."""
+        names = list(self.sources.get(eid, ()))
+        for n in self.contents.get(eid, ()):
+            if n.name not in names:
+                names.append(n.name)
+        return names
+
+    def descendants(self, eid: str):
+        """Every entity inside `eid`, at any depth."""
+        for c in self.children.get(eid, ()):
+            yield c
+            yield from self.descendants(c)
+
+    # ---- changes
+    def relocate(self, eid: str, target: str) -> None:
+        """Move entity `eid` into/onto `target`."""
+        old = self.parent.get(eid)
+        if old is not None:
+            self.children[old].remove(eid)
+        self.parent[eid] = target
+        self.children[target].append(eid)
+        self.arrived[eid] = self.step
+        if eid in self.nodes:
+            self.nodes[eid].arrived = self.step
+
+    def remove(self, eid: str) -> None:
+        """Remove an entity that was consumed or transformed."""
+        for c in list(self.children.get(eid, ())):
+            self.relocate(c, self.parent[eid])
+        old = self.parent.pop(eid, None)
+        if old is not None:
+            self.children[old].remove(eid)
+        self.children.pop(eid, None)
+        self.specs.pop(eid, None)
+        self.nodes.pop(eid, None)
+        self.known.discard(eid)
+
+    def add_entity(self, spec: EntitySpec, node: Node, holder: str) -> None:
+        """Add a new (result) object entity at `holder`."""
+        self.specs[spec.id] = spec
+        self.children[spec.id] = []
+        self.nodes[spec.id] = node
+        node.entity = spec.id
+        self.parent[spec.id] = holder
+        self.children[holder].append(spec.id)
+        self.arrived[spec.id] = self.step
+        self.known.add(spec.id)
+
+    def take_contents(self, holder: str, name: str) -> list:
+        """Remove and return the portions named `name` from `holder` (a new portion from a source)."""
+        nodes = [n for n in self.contents.get(holder, ()) if n.name == name]
+        if nodes:
+            self.contents[holder] = [n for n in self.contents[holder] if n.name != name]
+            return nodes
+        if name in self.sources.get(holder, ()):
+            return [self.portion(name)]
+        return []
+
+    def put_contents(self, holder: str, nodes: list) -> None:
+        """Put content nodes into `holder`."""
+        for n in nodes:
+            n.arrived = self.step
+        self.contents.setdefault(holder, []).extend(nodes)
+        self.known_contents.update(n.name for n in nodes)
