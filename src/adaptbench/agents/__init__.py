@@ -1,0 +1,1 @@
+"""Agents and users: the offline persona user, scripted agents, LLM planners."""

@@ -1,0 +1,86 @@
+"""The offline user: answers `Ask "..."` from the persona's preferences, deterministically.
+
+It picks the preferences whose topics (and text) best match the question, preferring those that
+apply to the current task, and answers in the first person. It never says where objects are,
+says so when it has no preference, and gives the same answer to the same question.
+"""
+
+from __future__ import annotations
+
+import re
+
+from ..compiler.model import CompiledDomain, Persona, Preference, Task
+
+_STOP = set("a an the of to in on for and or with do does did you your i me my would like prefer "
+            "is are be it this that any what which how should want have has there some".split())
+_LOCATION = re.compile(r"\b(where|location|located|find|locate|which (cabinet|drawer|shelf))\b", re.I)
+NO_PREFERENCE = "I don't have a particular preference about that; go with what you think is best."
+NO_LOCATION = ("I'm not sure where things are kept; please look around and search the kitchen. "
+               "I can tell you how I like my breakfast, though.")
+
+
+def words(text: str) -> set:
+    """Content words of a text, lower-cased and crudely singularised."""
+    out = set()
+    for w in re.findall(r"[a-z]+", text.lower()):
+        if w in _STOP or len(w) < 3:
+            continue
+        out.add(w[:-1] if w.endswith("s") and not w.endswith("ss") and len(w) > 3 else w)
+    return out
+
+
+def _score(question: set, pref: Preference) -> float:
+    topic_words = set().union(*(words(t) for t in pref.topics)) if pref.topics else set()
+    return 2.0 * len(question & topic_words) + 0.5 * len(question & words(pref.text))
+
+
+class OfflineUser:
+    """A deterministic persona user built from the spec (no model)."""
+
+    def __init__(self, domain: CompiledDomain, persona: Persona, task: Task | None = None, max_answers: int = 2):
+        self.domain, self.persona, self.task = domain, persona, task
+        self.max_answers = max_answers
+        self._memory: dict[str, str] = {}
+
+    def relevant(self, pref: Preference) -> bool:
+        """Whether a preference's scope covers the current task."""
+        if self.task is None or pref.rule.scope is None:
+            return True
+        groups = self.domain.groups
+        return any(c in groups.get(t, (t,)) for t in pref.rule.scope.targets for c in self.task.components)
+
+    def pick(self, question: str) -> list:
+        """The preferences a question is about, best first."""
+        q = words(question)
+        scored = [(_score(q, p) + (0.75 if self.relevant(p) else 0.0), i, p)
+                  for i, p in enumerate(self.persona.preferences)]
+        scored = [s for s in scored if s[0] >= 2.0]
+        scored.sort(key=lambda s: (-s[0], s[1]))
+        if not scored:
+            return []
+        best = scored[0][0]
+        return [p for s, _, p in scored[: self.max_answers] if s >= best - 1.0]
+
+    def answer(self, question: str, world=None) -> str:
+        """First-person answer to a question (same question, same answer)."""
+        key = " ".join(sorted(words(question)))
+        if key not in self._memory:
+            self._memory[key] = self._answer(question)
+        return self._memory[key]
+
+    def _answer(self, question: str) -> str:
+        prefs = self.pick(question)
+        if not prefs and _LOCATION.search(question):
+            return NO_LOCATION
+        if not prefs:
+            return NO_PREFERENCE
+        return " ".join(p.answer or first_person(p.text) for p in prefs)
+
+
+def first_person(text: str) -> str:
+    """A plain first-person rendering of a preference text."""
+    text = text.strip().rstrip(".")
+    lowered = text[0].lower() + text[1:]
+    if lowered.startswith(("prefer ", "prefers ")):
+        return "I " + lowered.replace("prefers ", "prefer ", 1) + "."
+    return f"I'd like this: {lowered}."

@@ -1,0 +1,163 @@
+"""`adapt scene`, `adapt play` and `adapt replay`: episodes from the command line."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+
+def _domain(args):
+    from .compiler import SpecError, load_domain
+
+    try:
+        return load_domain(args.spec)
+    except SpecError as exc:
+        print(str(exc), file=sys.stderr)
+        print("the spec has errors: run `adapt validate` for details", file=sys.stderr)
+        raise SystemExit(1) from None
+
+
+def _env(args, domain):
+    from .agents.users import OfflineUser
+    from .runtime.env import Env
+
+    for name, pool in (("task", domain.task), ("persona", domain.persona)):
+        value = getattr(args, name)
+        if value not in pool:
+            print(f"adapt: unknown {name} '{value}' (choose from: {', '.join(pool)})", file=sys.stderr)
+            raise SystemExit(2)
+    user = OfflineUser(domain, domain.persona[args.persona], domain.task[args.task])
+    seed = None if getattr(args, "full_scene", False) else args.seed
+    return Env(domain, task=args.task, persona=args.persona, seed=seed,
+               full_scene=getattr(args, "full_scene", False), user=user, max_steps=args.max_steps)
+
+
+def format_verdicts(evaluation) -> str:
+    """The verdict table printed at the end of an episode."""
+    rows = [(v.verdict.upper(), v.id, v.reason) for v in evaluation.verdicts]
+    width = max((len(r[1]) for r in rows), default=10)
+    lines = [f"{'verdict':<13} {'preference':<{width}}  reason"]
+    lines += [f"{a:<13} {b:<{width}}  {c}" for a, b, c in rows]
+    rate = evaluation.satisfaction_rate
+    lines.append(f"satisfied {evaluation.satisfied}, violated {evaluation.violated}, "
+                 f"rate {'n/a' if rate is None else f'{rate:.1%}'}, questions {evaluation.questions}, "
+                 f"completed: {', '.join(evaluation.completed) or 'nothing'}")
+    return "\n".join(lines)
+
+
+def _cmd_scene(args) -> int:
+    from .runtime.scene import sample_scene
+
+    domain = _domain(args)
+    scene = sample_scene(domain, None if args.full else args.seed, args.full)
+    data = scene.as_dict(domain)
+    if args.json:
+        print(json.dumps(data, indent=2))
+    else:
+        print(f"{data['scene_id']}: {data['counts']['entities']} entities, {data['counts']['movables']} movables")
+        for o in data["objects"]:
+            print(f"  {o['id']:<28} in/on {o['location']}")
+    return 0
+
+
+def _read_actions(path: str) -> list:
+    text = sys.stdin.read() if path == "-" else Path(path).read_text()
+    return [ln.strip() for ln in text.splitlines() if ln.strip() and not ln.strip().startswith("#")]
+
+
+def _cmd_replay(args) -> int:
+    domain = _domain(args)
+    try:
+        actions = _read_actions(args.actions)
+    except OSError as exc:
+        print(f"adapt: cannot read {args.actions}: {exc.strerror}", file=sys.stderr)
+        return 2
+    env = _env(args, domain)
+    env.reset()
+    steps = []
+    for text in actions:
+        if env.done:
+            break
+        r = env.step(text)
+        steps.append({"action": text, "ok": r.ok, "observation": r.observation, "reply": r.reply})
+        if not args.json:
+            _print_step(len(steps), text, r)
+    ev = env.evaluate()
+    if args.json:
+        out = {"task": args.task, "persona": args.persona, "scene": env.scene.scene_id, "steps": steps}
+        out.update(ev.as_dict())
+        print(json.dumps(out, indent=2))
+    else:
+        print(format_verdicts(ev))
+    return 0
+
+
+def _print_step(n: int, text: str, r) -> None:
+    mark = "ok " if r.ok else "ERR"
+    print(f"[{n:>2}] {mark} {text}")
+    if r.observation:
+        print(f"       {r.observation}")
+    if r.reply:
+        print(f"       user: {r.reply}")
+
+
+def _cmd_play(args) -> int:
+    domain = _domain(args)
+    env = _env(args, domain)
+    task = domain.task[args.task]
+    print(f"Task: {task.text}   (persona hidden; type actions, 'help' for the action list, Ctrl-D to stop)")
+    print("You are in a house with this layout:")
+    print(env.reset())
+    while not env.done:
+        try:
+            text = input("> ").strip()
+        except EOFError:
+            print()
+            break
+        if text in ("help", "?"):
+            for a in domain.actions:
+                print(f"  {' | '.join(a.forms):<60} e.g. {a.example}")
+            continue
+        if text:
+            _print_step(env.world.step + 1, text, env.step(text))
+    print(format_verdicts(env.evaluate()))
+    return 0
+
+
+def _common(p, seed: bool = True) -> None:
+    p.add_argument("--spec", default="spec", help="spec directory (default: spec)")
+    p.add_argument("--task", required=True, help="task id, e.g. eggs, toast_coffee")
+    p.add_argument("--persona", required=True, help="persona id, e.g. juan, ron")
+    p.add_argument("--max-steps", type=int, default=50, help="step limit (default 50)")
+
+
+def add_commands(sub) -> None:
+    """Register scene, play and replay."""
+    p = sub.add_parser("scene", help="sample a scene and list its objects",
+                       description="Sample the scene for a seed (every room, furniture and mandatory object; "
+                                   "other movables with p=0.7) and print it.")
+    p.add_argument("--spec", default="spec", help="spec directory (default: spec)")
+    p.add_argument("--seed", type=int, default=0, help="scene seed (default 0)")
+    p.add_argument("--full", action="store_true", help="include every object")
+    p.add_argument("--json", action="store_true", help="print JSON")
+    p.set_defaults(func=_cmd_scene)
+
+    p = sub.add_parser("play", help="play an episode in the terminal",
+                       description="Type actions (e.g. 'Look for eggs', 'Ask \"How do you like your eggs?\"'); "
+                                   "'Declare Done' ends the episode and prints the verdicts.")
+    _common(p)
+    p.add_argument("--seed", type=int, default=0, help="scene seed (default 0)")
+    p.add_argument("--full-scene", action="store_true", help="include every object")
+    p.set_defaults(func=_cmd_play)
+
+    p = sub.add_parser("replay", help="replay a file of actions and print verdicts",
+                       description="Replay ACTIONS_FILE (one action per line, # comments; '-' for stdin) and "
+                                   "print every step and the preference verdicts.")
+    _common(p)
+    g = p.add_mutually_exclusive_group(required=True)
+    g.add_argument("--seed", type=int, help="scene seed")
+    g.add_argument("--full-scene", action="store_true", help="include every object")
+    p.add_argument("actions", metavar="ACTIONS_FILE", help="file with one action per line")
+    p.add_argument("--json", action="store_true", help="print JSON: steps, preferences, satisfaction_rate, questions")
+    p.set_defaults(func=_cmd_replay)
