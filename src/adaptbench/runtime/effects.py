@@ -55,18 +55,41 @@ def _query_words(query: str) -> set:
     return _stems(key) | ({s for w in words for s in _stems(w)} if len(words) == 1 else set())
 
 
-def _matches_query(world: World, eid: str, keys: set) -> bool:
+_GENERIC = {"movable", "container", "source", "edible", "food"}
+_INDEX: dict = {}
+
+
+def _static_keys(spec, domain) -> frozenset:
+    keys = {spec.category} | (set(spec.tags) - _GENERIC)
+    keys |= {s for w in re.findall(r"[a-z]+", spec.description.lower()) for s in _stems(w)}
+    keys.add(spec.id.rsplit("_", 1)[0])
+    for name in spec.contents:
+        sub = domain.substance.get(name)
+        keys.add(name)
+        if sub:
+            keys |= {sub.category} | (set(sub.tags) - _GENERIC)
+    return frozenset(keys)
+
+
+def _search_keys(world: World, eid: str) -> frozenset:
+    """Words `Look for` matches an entity by (cached per catalogue entity)."""
+    domain = world.domain
+    index = _INDEX.get(id(domain))
+    if index is None or index[0] is not domain:
+        index = (domain, {e.id: _static_keys(e, domain) for e in domain.entities})
+        _INDEX[id(domain)] = index
     spec = world.specs[eid]
-    if spec.category in keys or keys & set(spec.tags) - {"movable", "container", "source", "edible", "food"}:
-        return True
-    words = {s for w in re.findall(r"[a-z]+", spec.description.lower()) for s in _stems(w)}
-    if keys & words or eid.rsplit("_", 1)[0] in keys:
-        return True
-    for name in world.content_names(eid):
-        sub = world.domain.substance.get(name)
-        if name in keys or (sub and (sub.category in keys or keys & set(sub.tags) - {"edible", "food"})):
-            return True
-    return False
+    keys = index[1].get(eid) if domain.entity.get(eid) is spec else None
+    if keys is None:
+        keys = _static_keys(spec, domain)
+    extra = world.contents.get(eid)
+    if extra:
+        keys = keys | {n.name for n in extra} | {n.category for n in extra if n.category}
+    return keys
+
+
+def _matches_query(world: World, eid: str, keys: set) -> bool:
+    return not keys.isdisjoint(_search_keys(world, eid))
 
 
 def reveal_category(world: World, params: dict, b: dict, ctx) -> str:
