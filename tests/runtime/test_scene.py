@@ -30,7 +30,7 @@ def test_orphans_move_to_the_nearest_present_holder(domain):
     for seed in range(30):
         s = sample_scene(domain, seed)
         loc = dict(s.location)
-        for e, holder in loc.items():
+        for _e, holder in loc.items():
             assert holder is None or holder in s.present
 
 

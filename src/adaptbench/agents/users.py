@@ -11,8 +11,7 @@ import re
 
 from ..compiler.model import CompiledDomain, Persona, Preference, Task
 
-_STOP = set("a an the of to in on for and or with do does did you your i me my would like prefer "
-            "is are be it this that any what which how should want have has there some".split())
+_STOP = set(["a", "an", "the", "of", "to", "in", "on", "for", "and", "or", "with", "do", "does", "did", "you", "your", "i", "me", "my", "would", "like", "prefer", "is", "are", "be", "it", "this", "that", "any", "what", "which", "how", "should", "want", "have", "has", "there", "some"])
 _LOCATION = re.compile(r"\b(where|location|located|find|locate|which (cabinet|drawer|shelf))\b", re.I)
 NO_PREFERENCE = "I don't have a particular preference about that; go with what you think is best."
 NO_LOCATION = ("I'm not sure where things are kept; please look around and search the kitchen. "

@@ -191,7 +191,7 @@ def _check_rule(draft: Draft, rule: A.Rule, context: str, names: Names, slots: d
     errors: list = []
     if rule.scope is not None:
         if context != "preference":
-            errors.append((rule.scope, "D108", f"'for ...:' scopes are only allowed in preference rules"))
+            errors.append((rule.scope, "D108", "'for ...:' scopes are only allowed in preference rules"))
         for t in rule.scope.targets:
             if t not in names.components | names.groups:
                 errors.append((rule.scope, "D105", f"unknown component or group '{t}'"

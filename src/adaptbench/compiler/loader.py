@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import json
-from functools import lru_cache
+from functools import cache
 from importlib import resources
 from pathlib import Path
 
@@ -23,7 +23,7 @@ def spec_files(spec_dirs: list[Path]) -> list[tuple[str, Path]]:
     return out
 
 
-@lru_cache(maxsize=None)
+@cache
 def schema(kind: str) -> dict:
     """The JSON Schema for one kind of spec file (shipped as package data)."""
     text = resources.files("adaptbench.compiler").joinpath(f"schemas/{kind}.schema.json").read_text()
