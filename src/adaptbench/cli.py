@@ -35,6 +35,10 @@ def _cmd_validate(args) -> int:
         if args.format == "text":
             print(f"{n} error(s)", file=sys.stderr)
         return 1
+    if args.matrix:
+        from .compiler.lint import render_matrix
+
+        print(render_matrix(domain))
     if args.format == "text":
         counts = ", ".join(f"{v} {k}" for k, v in domain.counts().items())
         print(f"ok: {counts} (spec hash {domain.spec_hash})")
@@ -58,6 +62,8 @@ def _add_validate(sub) -> None:
                                    "Exit 0 when clean, 1 on errors, 2 on usage errors.")
     p.add_argument("spec_dirs", nargs="*", default=["spec"], help="spec directories (default: spec)")
     p.add_argument("--format", choices=["text", "json"], default="text", help="output format")
+    p.add_argument("--matrix", action="store_true",
+                   help="also print how many preferences of each persona apply to each task")
     p.set_defaults(func=_cmd_validate)
 
 

@@ -13,6 +13,7 @@ from pathlib import Path
 from .build import ADDERS, Draft
 from .checks import check_all
 from .diagnostics import Diagnostic, SpecError
+from .lint import lint
 from .loader import load_file, spec_files, validate_schema
 from .model import CompiledDomain
 
@@ -53,10 +54,13 @@ def compile_spec(spec_dirs) -> tuple[CompiledDomain | None, list[Diagnostic]]:
         if not schema_diags:
             ADDERS[kind](draft, doc)
     check_all(draft)
-    errors = [d for d in draft.diags if d.severity == "error"]
-    if errors:
+    if any(d.severity == "error" for d in draft.diags):
         return None, sorted(draft.diags)
-    return _freeze(draft, spec_hash(dirs)), sorted(draft.diags)
+    domain = _freeze(draft, spec_hash(dirs))
+    draft.diags.extend(lint(domain, draft.where))
+    if any(d.severity == "error" for d in draft.diags):
+        return None, sorted(draft.diags)
+    return domain, sorted(draft.diags)
 
 
 def _unique(items):

@@ -1,0 +1,164 @@
+"""The persona linter (part of `adapt validate`): applicability matrix, preferences that apply to
+no task, class expressions that match nothing in the catalogue, and pairs of preferences of one
+persona that cannot both be satisfied."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from . import ast as A
+from .diagnostics import Diagnostic
+from .model import CompiledDomain, Persona, Preference
+
+
+@dataclass(frozen=True)
+class Item:
+    """A catalogue thing as a class expression sees it."""
+
+    name: str
+    category: str
+    tags: frozenset
+    entity: str | None = None
+
+
+def catalogue_items(domain: CompiledDomain) -> list:
+    """Every substance and every edible movable, as matchable items."""
+    items = [Item(s.id, s.category, frozenset(s.tags)) for s in domain.substances]
+    items += [Item(e.id, e.category, frozenset(e.tags), e.id) for e in domain.entities]
+    return items
+
+
+def matches(cls, item: Item, rooms: dict) -> bool:
+    """Whether a class expression matches a catalogue item (modifiers ignored)."""
+    if isinstance(cls, A.ClsName):
+        n = cls.name
+        return n in (item.category, item.name, item.entity) or n in item.tags or rooms.get(item.name) == n
+    if isinstance(cls, A.ClsAny):
+        return any(matches(x, item, rooms) for x in cls.items)
+    if isinstance(cls, A.ClsAll):
+        return all(matches(x, item, rooms) for x in cls.items)
+    if isinstance(cls, A.ClsNeg):
+        return not matches(cls.item, item, rooms)
+    return matches(cls.item, item, rooms)
+
+
+def _rooms(domain: CompiledDomain) -> dict:
+    out = {}
+    for e in domain.entities:
+        loc = e
+        while loc.location is not None:
+            loc = domain.entity[loc.location]
+        out[e.id] = loc.id
+    return out
+
+
+def applies_to(domain: CompiledDomain, pref: Preference, task) -> bool:
+    """Whether the preference's scope covers the task (availability aside)."""
+    targets = pref.rule.scope.targets if pref.rule.scope else ("all",)
+    return any(c in domain.groups.get(t, (t,)) for t in targets for c in task.components)
+
+
+def matrix(domain: CompiledDomain) -> list:
+    """Rows (persona id, [number of applicable preferences per task]) in task order."""
+    return [(p.id, [sum(applies_to(domain, pref, t) for pref in p.preferences) for t in domain.tasks])
+            for p in domain.personas]
+
+
+def render_matrix(domain: CompiledDomain) -> str:
+    """The applicability matrix as a text table."""
+    tasks = [t.id for t in domain.tasks]
+    width = max(len(t) for t in tasks)
+    head = f"{'persona':<10} " + " ".join(f"{t:>{width}}" for t in tasks) + "  total"
+    lines = [head]
+    for pid, row in matrix(domain):
+        total = len(domain.persona[pid].preferences)
+        lines.append(f"{pid:<10} " + " ".join(f"{n:>{width}}" for n in row) + f"  {total:>5}")
+    return "\n".join(lines)
+
+
+def lint(domain: CompiledDomain, where: dict) -> list:
+    """Linter diagnostics; `where` maps ("rule", persona, pref) to a Where."""
+    items, rooms = catalogue_items(domain), _rooms(domain)
+    out: list = []
+    for p in domain.personas:
+        for pref in p.preferences:
+            w = where.get(("rule", p.id, pref.id))
+            if w is None:
+                continue
+            if not any(applies_to(domain, pref, t) for t in domain.tasks):
+                out.append(Diagnostic(w.file, w.line, w.col, "L001", f"preference '{pref.id}' applies to no task",
+                                      "warning"))
+            out += _empty_classes(pref, items, rooms, w.file)
+        out += _conflicts(domain, p, where, items, rooms)
+    return out
+
+
+def _empty_classes(pref: Preference, items: list, rooms: dict, file: str) -> list:
+    out = []
+    for node in A.walk(pref.rule):
+        if isinstance(node, A.Pred) and node.op not in ("is", "task_has", "made", "served_before"):
+            for cls in node.args:
+                if isinstance(cls, A.Node) and not any(matches(cls, i, rooms) for i in items):
+                    out.append(Diagnostic(file, cls.line, cls.col, "L002",
+                                          f"'{_text(cls)}' matches nothing in the catalogue"))
+    return out
+
+
+def _text(cls) -> str:
+    from ..runtime.classes import render
+
+    return render(cls)
+
+
+def _atoms(pref: Preference) -> list:
+    """Top-level conjuncts of a rule's expression."""
+    e = pref.rule.expr
+    return list(e.items) if isinstance(e, A.AllOf) else [e]
+
+
+def _scope(pref: Preference) -> tuple:
+    return pref.rule.scope.targets if pref.rule.scope else ("all",)
+
+
+def _covers(domain, a: tuple, b: tuple) -> bool:
+    ca = {c for t in a for c in domain.groups.get(t, (t,))}
+    cb = {c for t in b for c in domain.groups.get(t, (t,))}
+    return bool(ca & cb)
+
+
+def _conflicts(domain: CompiledDomain, persona: Persona, where: dict, items: list, rooms: dict) -> list:
+    out = []
+    prefs = [p for p in persona.preferences if p.rule.scope is None or p.rule.scope.cond is None]
+    for i, a in enumerate(prefs):
+        for b in prefs[i + 1:]:
+            if not _covers(domain, _scope(a), _scope(b)):
+                continue
+            why = _clash(a, b, items, rooms) or _clash(b, a, items, rooms)
+            if why:
+                w = where[("rule", persona.id, b.id)]
+                out.append(Diagnostic(w.file, w.line, w.col, "L003",
+                                      f"'{b.id}' and '{a.id}' cannot both be satisfied: {why}", "warning"))
+    return out
+
+
+def _clash(a: Preference, b: Preference, items: list, rooms: dict) -> str:
+    for x in _atoms(a):
+        for y in _atoms(b):
+            if not (isinstance(x, A.Pred) and isinstance(y, A.Pred)):
+                continue
+            if x.op == "served_before" and y.op == "served_before" and x.subject == y.args[0] \
+                    and y.subject == x.args[0]:
+                return "opposite serving orders"
+            if x.subject != y.subject:
+                continue
+            if x.op == "has" and y.op == "has_no":
+                hit = [i.name for i in items if matches(x.args[0], i, rooms)]
+                if hit and all(matches(y.args[0], i, rooms) for i in items if matches(x.args[0], i, rooms)):
+                    return f"one needs {_text(x.args[0])}, the other forbids {_text(y.args[0])}"
+            if x.op == "adds_before" and y.op == "adds_before" and _same(x.args, tuple(reversed(y.args))):
+                return "opposite orders"
+    return ""
+
+
+def _same(a: tuple, b: tuple) -> bool:
+    return [_text(c) for c in a] == [_text(c) for c in b]
