@@ -19,7 +19,7 @@ from .model import CompiledDomain
 
 __all__ = ["CompiledDomain", "Diagnostic", "SpecError", "compile_spec", "load_domain", "spec_hash"]
 
-COMPILER_VERSION = "1"
+COMPILER_VERSION = "2"
 
 
 def _display(path: Path) -> str:
@@ -85,6 +85,8 @@ def _freeze(draft: Draft, digest: str) -> CompiledDomain:
         styles=_unique(draft.styles),
         tasks=_unique(draft.tasks),
         personas=tuple(sorted(_unique(draft.personas), key=lambda p: (p.number, p.id))),
+        recipes=_unique(draft.recipes),
+        planning=tuple(draft.planning),
     )
 
 

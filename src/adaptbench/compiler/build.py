@@ -8,6 +8,10 @@ from . import ast as A
 from .diagnostics import Diagnostic
 from .model import (
     ActionSpec,
+    Choice,
+    Option,
+    Recipe,
+    Step,
     Component,
     Effect,
     EntitySpec,
@@ -37,6 +41,8 @@ class Draft:
     styles: list = field(default_factory=list)
     tasks: list = field(default_factory=list)
     personas: list = field(default_factory=list)
+    recipes: list = field(default_factory=list)
+    planning: list = field(default_factory=list)
     where: dict = field(default_factory=dict)  # (kind, id[, field]) -> Where
     diags: list = field(default_factory=list)
 
@@ -158,6 +164,40 @@ def add_tasks(draft: Draft, doc: LoadedDoc) -> None:
         rule = rule_at(draft, doc, ("styles", i, "rule"), s["rule"]) if "rule" in s else None
         draft.styles.append(Style(s["id"], s["text"], tuple(s.get("words", ())), tuple(s.get("verbs", ())), rule))
         draft.claim("style", s["id"], draft.at(doc, ("styles", i, "id")))
+    add_recipes(draft, doc)
+
+
+def _choice(data: dict) -> Choice:
+    options = tuple(Option(o) if isinstance(o, str) else Option(o["value"], tuple(o.get("needs", ())))
+                    for o in data["options"])
+    multi = bool(data.get("multi", False))
+    default = data.get("default", [] if multi else options[0].value)
+    default = tuple(default) if isinstance(default, list) else (default,)
+    return Choice(data["id"], data.get("ask", ""), options, default, multi)
+
+
+def _step(data) -> Step:
+    if isinstance(data, str):
+        return Step("do", text=data)
+    body = tuple(_step(s) for s in data["do"])
+    if "for" in data:
+        return Step("for", over=data["for"], body=body)
+    cond = tuple((k, tuple(v) if isinstance(v, list) else (v,)) for k, v in data["when"].items())
+    return Step("when", cond=cond, body=body)
+
+
+def add_recipes(draft: Draft, doc: LoadedDoc) -> None:
+    """Read recipes and planning choices from a tasks file."""
+    for i, c in enumerate(doc.data.get("planning", [])):
+        draft.planning.append(_choice(c))
+        draft.where[("planning", c["id"])] = draft.at(doc, ("planning", i, "id"))
+    for i, r in enumerate(doc.data.get("recipes", [])):
+        choices = tuple(_choice(c) for c in r["choices"])
+        draft.recipes.append(Recipe(r["id"], r.get("component"), bool(r.get("optional", False)), r["serve"],
+                                    choices, tuple(_step(s) for s in r["steps"])))
+        draft.claim("recipe", r["id"], draft.at(doc, ("recipes", i, "id")))
+        for j, c in enumerate(r["choices"]):
+            draft.where[("choice", r["id"], c["id"])] = draft.at(doc, ("recipes", i, "choices", j, "id"))
 
 
 def add_persona(draft: Draft, doc: LoadedDoc) -> None:

@@ -57,6 +57,7 @@ def check_all(draft: Draft) -> None:
     check_verbs(draft)
     check_tasks(draft, names)
     check_personas(draft, names)
+    check_recipes(draft, names)
 
 
 # ---------------------------------------------------------------- objects
@@ -264,3 +265,52 @@ def _check_subject(node, subject, context: str, names: Names, slots: dict, scope
 
 def _op_word(op: str) -> str:
     return op.replace("_", " ")
+
+
+# ---------------------------------------------------------------- recipes
+_TEMPLATE_RE = re.compile(r"\{(?:src:)?(\w+)\}")
+
+
+def check_recipes(draft: Draft, names: Names) -> None:
+    """Recipes name real components, options that exist, and only their own choices."""
+    catalogue = {e.id for e in draft.entities} | {s.id for s in draft.substances}
+    for r in draft.recipes:
+        where = draft.where[("recipe", r.id)]
+        if r.component is not None and r.component not in names.components:
+            draft.error(where, "D105", f"unknown component '{r.component}'{did_you_mean(r.component, names.components)}")
+        choices = {c.id: c for c in r.choices} | {c.id: c for c in draft.planning}
+        if r.serve not in choices:
+            draft.error(where, "D403", f"serve '{r.serve}' is not a choice of recipe '{r.id}'")
+        for c in r.choices:
+            _check_choice(draft, draft.where[("choice", r.id, c.id)], c, catalogue)
+        for msg in _step_problems(r.steps, choices, set()):
+            draft.error(where, "D404", f"recipe '{r.id}': {msg}")
+
+
+def _check_choice(draft: Draft, where: Where, c, catalogue: set) -> None:
+    for o in c.options:
+        for need in o.needs:
+            if need not in catalogue:
+                draft.error(where, "D401", f"option '{o.value}' needs unknown '{need}'{did_you_mean(need, catalogue)}")
+    for d in c.default:
+        if d not in c.values:
+            draft.error(where, "D402", f"default '{d}' of choice '{c.id}' is not one of its options")
+
+
+def _step_problems(steps, choices: dict, loop_vars: set) -> list:
+    out = []
+    for s in steps:
+        if s.kind == "do":
+            for name in _TEMPLATE_RE.findall(s.text):
+                if name not in choices and name not in loop_vars:
+                    out.append(f"step '{s.text}' uses unknown choice '{name}'{did_you_mean(name, choices)}")
+        elif s.kind == "for":
+            if s.over not in choices:
+                out.append(f"'for: {s.over}' is not a choice{did_you_mean(s.over, choices)}")
+            out += _step_problems(s.body, choices, loop_vars | {"item"})
+        else:
+            for name, _ in s.cond:
+                if name not in choices:
+                    out.append(f"'when: {name}' is not a choice{did_you_mean(name, choices)}")
+            out += _step_problems(s.body, choices, loop_vars)
+    return out

@@ -106,6 +106,58 @@ class Style:
 
 
 @dataclass(frozen=True)
+class Option:
+    """One option of a choice point, and what must be in the scene for it to be usable."""
+
+    value: str
+    needs: tuple = ()
+
+
+@dataclass(frozen=True)
+class Choice:
+    """A choice point of a recipe (which milk, which cup, which toppings ...)."""
+
+    id: str
+    ask: str
+    options: tuple
+    default: tuple  # chosen values when nobody says otherwise
+    multi: bool = False
+
+    @property
+    def values(self) -> tuple:
+        """The option values."""
+        return tuple(o.value for o in self.options)
+
+
+@dataclass(frozen=True)
+class Step:
+    """A recipe step: an action template (`do`), a conditional block (`when`), or a loop (`for`)."""
+
+    kind: str  # do | when | for
+    text: str = ""
+    cond: tuple = ()  # ((choice id, (values...)), ...); values may be ("any",) or ("none",)
+    over: str = ""
+    body: tuple = ()
+
+
+@dataclass(frozen=True)
+class Recipe:
+    """How the scripted agents make one component (or an optional extra such as a side dish)."""
+
+    id: str
+    component: str | None
+    optional: bool
+    serve: str
+    choices: tuple
+    steps: tuple
+
+    @property
+    def choice(self) -> dict:
+        """Choices by id."""
+        return {c.id: c for c in self.choices}
+
+
+@dataclass(frozen=True)
 class Task:
     """A task: its text and the components it must complete."""
 
@@ -151,6 +203,8 @@ class CompiledDomain:
     styles: tuple
     tasks: tuple
     personas: tuple
+    recipes: tuple = ()
+    planning: tuple = ()
 
     @cached_property
     def entity(self) -> dict:
@@ -181,6 +235,11 @@ class CompiledDomain:
     def task(self) -> dict:
         """Tasks by id."""
         return {t.id: t for t in self.tasks}
+
+    @cached_property
+    def recipe(self) -> dict:
+        """Recipes by id."""
+        return {r.id: r for r in self.recipes}
 
     @cached_property
     def persona(self) -> dict:
@@ -225,7 +284,8 @@ class CompiledDomain:
 
 
 _MODEL_TYPES = {c.__name__: c for c in (EntitySpec, Substance, Precondition, Effect, ActionSpec, Component,
-                                        Style, Task, Preference, Persona, CompiledDomain)}
+                                        Style, Task, Preference, Persona, CompiledDomain, Option, Choice, Step,
+                                        Recipe)}
 
 
 def _to_data(obj):
