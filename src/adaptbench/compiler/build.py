@@ -158,7 +158,8 @@ def add_tasks(draft: Draft, doc: LoadedDoc) -> None:
     for i, c in enumerate(data.get("components", [])):
         rule = rule_at(draft, doc, ("components", i, "completion"), c["completion"])
         if rule is not None:
-            draft.components.append(Component(c["id"], c["text"], c["kind"], tuple(c.get("groups", ())), rule))
+            draft.components.append(Component(c["id"], c["text"], c["kind"], tuple(c.get("groups", ())), rule,
+                                              tuple(c.get("requires", ()))))
         draft.claim("component", c["id"], draft.at(doc, ("components", i, "id")))
     for i, s in enumerate(data.get("styles", [])):
         rule = rule_at(draft, doc, ("styles", i, "rule"), s["rule"]) if "rule" in s else None

@@ -170,6 +170,10 @@ def check_tasks(draft: Draft, names: Names) -> None:
                             f"unknown component '{c}'{did_you_mean(c, names.components)}")
     for c in draft.components:
         _check_rule(draft, c.completion, "dish", names)
+        for r in c.requires:
+            if r not in names.classes:
+                draft.error(draft.where[("component", c.id)], "D104",
+                            f"unknown class '{r}' in requires{did_you_mean(r, names.classes)}")
     for s in draft.styles:
         if s.rule is not None:
             _check_rule(draft, s.rule, "dish", names)

@@ -92,6 +92,7 @@ class Component:
     kind: str
     groups: tuple
     completion: A.Rule
+    requires: tuple = ()  # classes every scene keeps at least one of
 
 
 @dataclass(frozen=True)

@@ -40,9 +40,25 @@ def sample_scene(domain: CompiledDomain, seed: int | None = 0, full: bool = Fals
         keep = full or e.kind != "movable" or e.mandatory or rng.random() < KEEP_PROBABILITY
         if keep:
             present.add(e.id)
+    _keep_required(domain, present)
     location = tuple((e.id, _holder(domain, e.id, present)) for e in domain.entities if e.id in present)
     digest = hashlib.sha256(f"{domain.spec_hash}:{seed}:{full}".encode()).hexdigest()[:12]
     return Scene(f"scene-{digest}", seed, full, frozenset(present), location)
+
+
+def _provides(domain: CompiledDomain, e, cls: str) -> bool:
+    if cls == e.category or cls in e.tags:
+        return True
+    return any(cls == domain.substance[c].category or cls in domain.substance[c].tags for c in e.contents)
+
+
+def _keep_required(domain: CompiledDomain, present: set) -> None:
+    """Every class a component requires keeps at least one provider (the first in the catalogue)."""
+    for comp in domain.components:
+        for cls in comp.requires:
+            movables = [e for e in domain.entities if e.kind == "movable" and _provides(domain, e, cls)]
+            if movables and not any(e.id in present for e in movables):
+                present.add(movables[0].id)
 
 
 def _holder(domain: CompiledDomain, eid: str, present: set) -> str | None:
