@@ -110,8 +110,7 @@ class Executor:
             any(self._holders(s.id) for s in d.substances if s.category == value)
 
     def _holders(self, substance: str) -> list:
-        w = self.world
-        return [h for h in sorted(w.known) if h in w.specs and w.has_content(h, substance)]
+        return self.world.holders_of(substance)
 
     # ---- choices
     def usable(self, value: str, needs: tuple) -> bool:
@@ -125,10 +124,11 @@ class Executor:
 
     def value(self, recipe: Recipe, name: str):
         """The resolved value of a choice (single: first usable of chosen + fallbacks; multi: usable subset)."""
-        key = f"{recipe.id}.{name}"
+        choice = recipe.choice.get(name)
+        key = f"{recipe.id}.{name}" if choice else f"{PLAN}.{name}"
         if key in self.resolved:
             return self.resolved[key]
-        choice = recipe.choice.get(name) or {c.id: c for c in self.domain.planning}[name]
+        choice = choice or {c.id: c for c in self.domain.planning}[name]
         chosen = self.assignment.get(key, choice.default if choice.multi else choice.default[0])
         needs = {o.value: o.needs for o in choice.options}
         if choice.multi:

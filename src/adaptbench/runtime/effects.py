@@ -71,13 +71,25 @@ def _static_keys(spec, domain) -> frozenset:
     return frozenset(keys)
 
 
+def _index(domain) -> tuple:
+    """(entity -> keys, key -> catalogue movables) for a domain, built once."""
+    index = _INDEX.get(id(domain))
+    if index is None or index[0] is not domain:
+        keys = {e.id: _static_keys(e, domain) for e in domain.entities}
+        inverted: dict = {}
+        for e in domain.entities:
+            if e.kind == "movable":
+                for k in keys[e.id]:
+                    inverted.setdefault(k, []).append(e.id)
+        index = (domain, keys, inverted)
+        _INDEX[id(domain)] = index
+    return index
+
+
 def _search_keys(world: World, eid: str) -> frozenset:
     """Words `Look for` matches an entity by (cached per catalogue entity)."""
     domain = world.domain
-    index = _INDEX.get(id(domain))
-    if index is None or index[0] is not domain:
-        index = (domain, {e.id: _static_keys(e, domain) for e in domain.entities})
-        _INDEX[id(domain)] = index
+    index = _index(domain)
     spec = world.specs[eid]
     keys = index[1].get(eid) if domain.entity.get(eid) is spec else None
     if keys is None:
@@ -92,10 +104,21 @@ def _matches_query(world: World, eid: str, keys: set) -> bool:
     return not keys.isdisjoint(_search_keys(world, eid))
 
 
+def _lookup(world: World, keys: set) -> list:
+    """Movables present now that match any key: the catalogue index, plus entities created or
+    filled during the episode."""
+    domain = world.domain
+    inverted = _index(domain)[2]
+    hits = {e for k in keys for e in inverted.get(k, ()) if world.specs.get(e) is domain.entity.get(e)}
+    dynamic = [e for e in world.contents if e in world.specs] + [e for e in world.nodes if e not in domain.entity]
+    hits.update(e for e in dynamic if world.specs[e].kind == "movable" and _matches_query(world, e, keys))
+    return list(hits)
+
+
 def reveal_category(world: World, params: dict, b: dict, ctx) -> str:
     """Look for a category in the whole house; matches and their holders become known."""
     keys = _query_words(_arg(params, b, "query"))
-    hits = [e for e, s in world.specs.items() if s.kind == "movable" and _matches_query(world, e, keys)]
+    hits = _lookup(world, keys)
     new = []
     for e in sorted(hits, key=_natural):
         for a in [*reversed(list(world.ancestors(e))), e]:

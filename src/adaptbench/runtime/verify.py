@@ -24,6 +24,12 @@ class Outcome:
     ok: bool
     why: str
     steps: tuple = ()
+    progress: float = -1.0  # how close to holding, in [0, 1] (search agents use it); -1 = 1 if ok else 0
+
+    @property
+    def closeness(self) -> float:
+        """`progress`, defaulting to 1.0 when the predicate holds and 0.0 when not."""
+        return self.progress if self.progress >= 0 else float(self.ok)
 
 
 @dataclass(frozen=True)
@@ -35,6 +41,7 @@ class Verdict:
     verdict: str  # satisfied | violated | inapplicable
     reason: str
     steps: tuple = ()
+    progress: float = 0.0  # for violated verdicts: how close the episode came (0..1)
 
 
 @dataclass(frozen=True)
@@ -137,13 +144,13 @@ def _expr(node, domain):
 
 
 def _all(outcomes) -> Outcome:
-    steps, whys = [], []
+    outcomes = list(outcomes)
+    progress = sum(r.closeness for r in outcomes) / len(outcomes)
     for r in outcomes:
         if not r.ok:
-            return r
-        steps.extend(r.steps)
-        whys.append(r.why)
-    return Outcome(True, "; ".join(w for w in whys if w), tuple(sorted(set(steps))))
+            return Outcome(False, r.why, r.steps, progress)
+    steps = {s for r in outcomes for s in r.steps}
+    return Outcome(True, "; ".join(r.why for r in outcomes if r.why), tuple(sorted(steps)))
 
 
 def _any(outcomes: list) -> Outcome:
@@ -151,7 +158,7 @@ def _any(outcomes: list) -> Outcome:
         if r.ok:
             return r
     return Outcome(False, " and ".join(r.why for r in outcomes if r.why),
-                   tuple(sorted({s for r in outcomes for s in r.steps})))
+                   tuple(sorted({s for r in outcomes for s in r.steps})), max(r.closeness for r in outcomes))
 
 
 def _label(dishes: list) -> str:
@@ -212,7 +219,9 @@ def _p_count(node: A.Pred, domain):
         dishes = ctx.subject(node.subject, it)
         kinds = sorted({x.category or x.name for _, x in _matches(dishes, f)})
         ok = cmp(len(kinds), n)
-        return Outcome(ok, f"{len(kinds)} kind(s) of {text} ({', '.join(kinds) or 'none'}), want {op} {n}")
+        progress = min(len(kinds) / n, 1.0) if op in (">=", ">") and n else float(ok)
+        return Outcome(ok, f"{len(kinds)} kind(s) of {text} ({', '.join(kinds) or 'none'}), want {op} {n}",
+                       (), progress)
     return count
 
 
@@ -245,7 +254,9 @@ def _every_dish(node: A.Pred, test, describe: str):
         dishes = ctx.subject(node.subject, it)
         bad = [d for d in dishes if not test(ctx, d)]
         if bad or not dishes:
-            return Outcome(False, f"{_label(bad or dishes)} not {describe}", tuple(d.served_step for d in bad))
+            progress = 1 - len(bad) / len(dishes) if dishes else 0.0
+            return Outcome(False, f"{_label(bad or dishes)} not {describe}", tuple(d.served_step for d in bad),
+                           progress)
         return Outcome(True, f"{_label(dishes)} {describe}", tuple(d.served_step for d in dishes))
     return check
 
@@ -368,14 +379,15 @@ def verdict(ctx: Ctx, pref) -> Verdict:
         if not cond.ok:
             return Verdict(pref.id, pref.text, "inapplicable", cond.why)
     f = compiled(ctx.domain, rule)
+    results = []
     for c in comps:
         dishes = [d for d in ctx.dishes if c in d.completes]
-        if not dishes:
-            return Verdict(pref.id, pref.text, "violated", f"{c} was not completed")
-        r = f(ctx, dishes)
+        results.append(f(ctx, dishes) if dishes else Outcome(False, f"{c} was not completed"))
+    progress = sum(r.closeness for r in results) / len(results)
+    for r in results:
         if not r.ok:
-            return Verdict(pref.id, pref.text, "violated", r.why, r.steps)
-    return Verdict(pref.id, pref.text, "satisfied", r.why, r.steps)
+            return Verdict(pref.id, pref.text, "violated", r.why, r.steps, progress)
+    return Verdict(pref.id, pref.text, "satisfied", results[-1].why, results[-1].steps, 1.0)
 
 
 def evaluate(domain: CompiledDomain, world: World, task: Task, persona: Persona | None) -> Evaluation:

@@ -65,6 +65,10 @@ class World:
                 self.children[loc].append(e)
         self.sources: dict[str, tuple] = {e: self.specs[e].contents for e in scene.present
                                           if self.specs[e].contents}
+        self.source_index: dict[str, list] = {}
+        for e in sorted(self.sources):
+            for sub in self.sources[e]:
+                self.source_index.setdefault(sub, []).append(e)
         self.contents: dict[str, list] = {}
         self.state: dict[str, set] = {}
         self.arrived: dict[str, int] = {}
@@ -123,11 +127,10 @@ class World:
         return None
 
     def holders_of(self, name: str) -> list:
-        """Known entities holding content `name` (as a portion or as an endless source)."""
-        out = []
-        for eid in self.known:
-            if name in self.sources.get(eid, ()) or any(n.name == name for n in self.contents.get(eid, ())):
-                out.append(eid)
+        """Known entities holding content `name` (as a portion or as an endless source), sorted."""
+        out = {e for e in self.source_index.get(name, ()) if e in self.known}
+        out.update(e for e, nodes in self.contents.items()
+                   if e in self.known and any(n.name == name for n in nodes))
         return sorted(out)
 
     def has_content(self, holder: str, name: str) -> bool:

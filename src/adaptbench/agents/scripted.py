@@ -1,0 +1,187 @@
+"""Scripted agents that plan from the recipes in the spec.
+
+- `oracle`: the privileged teacher. It knows the persona's preferences and searches the recipe
+  choices in the simulator (greedy coordinate search) for the plan the verifiers accept best.
+- `never-ask`: the same planner with the recipes' sensible defaults and no questions.
+- `always-ask`: asks the user at every choice point that has a question and follows the answer.
+
+All of them explore like a real agent: they `Look for` things before using them.
+"""
+
+from __future__ import annotations
+
+import re
+
+from ..compiler import ast as A
+from ..compiler.lint import applies_to
+from ..compiler.model import Choice, CompiledDomain, Persona, Task
+from ..runtime.env import Env
+from .plans import PLAN, all_recipes, choice_points, defaults, execute, task_recipes
+from .users import words
+
+AGENTS = ("oracle", "never-ask", "always-ask")
+
+
+# ------------------------------------------------------------------ never-ask
+def run_never_ask(env: Env) -> None:
+    """Defaults everywhere, no questions."""
+    execute(env, defaults(env.domain, all_recipes(env.domain, env.task)))
+
+
+# ------------------------------------------------------------------ always-ask
+_NEGATORS = {"no", "not", "without", "avoid", "never", "don", "dont", "instead", "free", "skip", "nothing"}
+
+
+def option_words(domain: CompiledDomain, value: str) -> tuple[set, set]:
+    """(specific words, general words) describing an option."""
+    specific = set(words(value.replace("_", " ")))
+    general: set = set()
+    if value in domain.substance:
+        s = domain.substance[value]
+        specific |= words(s.description) | words(s.category.replace("_", " "))
+        general |= {w for t in s.tags for w in words(t.replace("_", " "))}
+    elif value in domain.entity:
+        e = domain.entity[value]
+        specific |= words(e.description) | words(e.category.replace("_", " "))
+        general |= {w for t in e.tags for w in words(t.replace("_", " "))}
+    return specific, general
+
+
+def _negated(answer: str) -> set:
+    toks = re.findall(r"[a-z]+", answer.lower())
+    out = set()
+    for i, t in enumerate(toks):
+        if t in _NEGATORS:
+            out |= words(" ".join(toks[i + 1: i + 4]))
+    return out
+
+
+def interpret(domain: CompiledDomain, choice: Choice, answer: str):
+    """The option(s) an answer asks for; the default when it names none."""
+    said, negated = words(answer), _negated(answer)
+    scores = {}
+    for v in choice.values:
+        spec, gen = option_words(domain, v)
+        if (spec | gen) & negated and not spec & (said - negated):
+            scores[v] = -1.0
+            continue
+        scores[v] = 2.0 * len(spec & said) + 1.0 * len(gen & said)
+    if choice.multi:
+        picked = tuple(v for v in choice.values if scores[v] >= 2.0)
+        return picked if picked or not negated else ()
+    best = max(choice.values, key=lambda v: (scores[v], -choice.values.index(v)))
+    if scores[best] > 0:
+        return best
+    if "none" in choice.values and negated:
+        return "none"
+    return choice.default[0]
+
+
+def run_always_ask(env: Env) -> None:
+    """Ask at every choice point (planning choices first, then each recipe's), then act."""
+    d = env.domain
+    assignment: dict = {}
+    for c in d.planning:
+        if c.ask:
+            assignment[f"{PLAN}.{c.id}"] = interpret(d, c, env.step(f'Ask "{c.ask}"').reply)
+    for r in task_recipes(d, env.task, assignment):
+        for c in r.choices:
+            if c.ask and not env.done:
+                assignment[f"{r.id}.{c.id}"] = interpret(d, c, env.step(f'Ask "{c.ask}"').reply)
+    execute(env, {**defaults(d, all_recipes(d, env.task)), **assignment})
+
+
+# ------------------------------------------------------------------ oracle
+def rule_names(domain: CompiledDomain, persona: Persona, task: Task) -> set:
+    """Every name the persona's preferences about this task mention."""
+    out = set()
+    for pref in persona.preferences:
+        if applies_to(domain, pref, task):
+            out |= {n.name for n in A.walk(pref.rule) if isinstance(n, A.ClsName)}
+    return out
+
+
+def _info(domain: CompiledDomain, value: str) -> set:
+    if value in domain.substance:
+        s = domain.substance[value]
+        return {value, s.category, *s.tags}
+    if value in domain.entity:
+        e = domain.entity[value]
+        room = e.location
+        while room in domain.entity and domain.entity[room].location is not None:
+            room = domain.entity[room].location
+        return {value, e.category, *e.tags, room or ""}
+    members = [e for e in domain.entities if e.category == value] + [s for s in domain.substances if s.category == value]
+    return {value} | {t for m in members for t in m.tags}
+
+
+def _relevant(domain: CompiledDomain, choice: Choice, value: str, names: set) -> bool:
+    catalogue = value in domain.entity or value in domain.substance or any(c == value for c, _ in domain.categories)
+    needs = next((o.needs for o in choice.options if o.value == value), ())
+    if not catalogue and not needs:
+        return True
+    return bool(set().union(_info(domain, value), *(_info(domain, n) for n in needs)) & names)
+
+
+def candidate(domain: CompiledDomain, choice: Choice, current, value: str, names: set):
+    """The assignment value that tries `value` for a choice point, or None if not worth trying."""
+    if choice.multi:
+        if value in current:
+            return tuple(x for x in current if x != value)
+        if _relevant(domain, choice, value, names):
+            return tuple(x for x in choice.values if x in current or x == value)
+        return None
+    if value != current and _relevant(domain, choice, value, names):
+        return value
+    return None
+
+
+class Oracle:
+    """Greedy search over recipe choices, scored by the persona's verifiers in the simulator."""
+
+    def __init__(self, domain: CompiledDomain, task: Task, persona: Persona, seed, full_scene: bool,
+                 rounds: int = 2):
+        self.domain, self.task, self.persona = domain, task, persona
+        self.seed, self.full, self.rounds = seed, full_scene, rounds
+        self.simulations = 0
+
+    def score(self, assignment: dict) -> float:
+        """satisfied - violated (+ half the progress of violated ones) of a plan, simulated."""
+        env = Env(self.domain, task=self.task.id, persona=self.persona.id, seed=self.seed, full_scene=self.full)
+        env.reset()
+        execute(env, assignment)
+        ev = env.evaluate()
+        self.simulations += 1
+        near = sum(v.progress for v in ev.verdicts if v.verdict == "violated")
+        return ev.satisfied - ev.violated + 0.5 * near
+
+    def search(self) -> dict:
+        """The best assignment found."""
+        recipes = all_recipes(self.domain, self.task)
+        points = choice_points(self.domain, recipes)
+        names = rule_names(self.domain, self.persona, self.task)
+        best_a = defaults(self.domain, recipes)
+        best = self.score(best_a)
+        for _ in range(self.rounds):
+            improved = False
+            for key, choice in points:
+                for value in choice.values:
+                    cand = candidate(self.domain, choice, best_a[key], value, names)
+                    if cand is None:
+                        continue
+                    trial = {**best_a, key: cand}
+                    s = self.score(trial)
+                    if s > best + 1e-9:
+                        best_a, best, improved = trial, s, True
+            if not improved:
+                break
+        return best_a
+
+
+def run_oracle(env: Env) -> None:
+    """Search the best plan for the persona, then carry it out (no questions)."""
+    oracle = Oracle(env.domain, env.task, env.persona, env.scene.seed, env.scene.full)
+    execute(env, oracle.search())
+
+
+RUNNERS = {"oracle": run_oracle, "never-ask": run_never_ask, "always-ask": run_always_ask}

@@ -1,0 +1,1 @@
+"""Rollouts, evaluation tables, reflection and training (heavy parts import torch lazily)."""

@@ -1,0 +1,115 @@
+"""Evaluation tables in the paper's Table 1 layout: preference satisfaction rate and questions asked,
+mean ± standard error, for seen and unseen personas under the release's cross-validation splits."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+# The release's 4 cross-validation splits: the unseen personas of each (the others are seen).
+UNSEEN = {0: ("leila", "lisa", "mark", "samantha"), 1: ("carlos", "jamal", "juan", "maria"),
+          2: ("ethan", "maya", "nalini", "ramesh"), 3: ("miranda", "rachel", "ron", "sarah")}
+
+
+def load_records(paths) -> list:
+    """All episode records from JSONL files (torn lines skipped)."""
+    out = []
+    for p in paths:
+        for line in Path(p).read_text().splitlines():
+            try:
+                out.append(json.loads(line))
+            except json.JSONDecodeError:
+                continue
+    return out
+
+
+def mean_se(values: list) -> tuple:
+    """Mean and standard error of the mean."""
+    n = len(values)
+    if n == 0:
+        return float("nan"), float("nan")
+    m = sum(values) / n
+    if n == 1:
+        return m, 0.0
+    var = sum((v - m) ** 2 for v in values) / (n - 1)
+    return m, math.sqrt(var / n)
+
+
+def split_of(record: dict) -> list:
+    """(column, record) pairs: a record with a `split` is seen or unseen in that split; an untrained
+    agent's record counts in both columns (every persona is seen in three splits and unseen in one)."""
+    if "split" in record:
+        unseen = record["persona"] in UNSEEN[int(record["split"])]
+        return ["unseen" if unseen else "seen"]
+    return ["seen", "unseen"]
+
+
+def table(records: list) -> list:
+    """Rows: agent, n, rate seen/unseen (mean, se), questions seen/unseen (mean, se)."""
+    agents = sorted({r["agent"] for r in records}, key=lambda a: _order(a))
+    rows = []
+    for a in agents:
+        cols = {"seen": ([], []), "unseen": ([], [])}
+        for r in records:
+            if r["agent"] != a:
+                continue
+            for col in split_of(r):
+                if r["satisfaction_rate"] is not None:
+                    cols[col][0].append(r["satisfaction_rate"])
+                cols[col][1].append(r["questions"])
+        n = sum(1 for r in records if r["agent"] == a)
+        rows.append({"agent": a, "episodes": n,
+                     "rate_seen": mean_se(cols["seen"][0]), "rate_unseen": mean_se(cols["unseen"][0]),
+                     "questions_seen": mean_se(cols["seen"][1]), "questions_unseen": mean_se(cols["unseen"][1])})
+    return rows
+
+
+_PAPER_ORDER = ["never-ask", "baseline", "react", "star-gate", "reflection-dpo", "always-ask", "oracle", "teacher"]
+
+
+def _order(agent: str) -> tuple:
+    return (_PAPER_ORDER.index(agent) if agent in _PAPER_ORDER else len(_PAPER_ORDER), agent)
+
+
+def _pct(ms) -> str:
+    return f"{ms[0] * 100:.1f}% ± {ms[1] * 100:.1f}%"
+
+
+def _num(ms) -> str:
+    return f"{ms[0]:.1f} ± {ms[1]:.1f}"
+
+
+HEADER = ["Method", "Episodes", "Satisfaction (seen)", "Satisfaction (unseen)", "Questions (seen)",
+          "Questions (unseen)"]
+
+
+def cells(row: dict) -> list:
+    """The printable cells of a row."""
+    return [row["agent"], str(row["episodes"]), _pct(row["rate_seen"]), _pct(row["rate_unseen"]),
+            _num(row["questions_seen"]), _num(row["questions_unseen"])]
+
+
+def render_text(rows: list) -> str:
+    """A fixed-width table."""
+    data = [HEADER] + [cells(r) for r in rows]
+    widths = [max(len(r[i]) for r in data) for i in range(len(HEADER))]
+    return "\n".join("  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)) for r in data)
+
+
+def render_markdown(rows: list) -> str:
+    """A Markdown table."""
+    lines = ["| " + " | ".join(HEADER) + " |", "|" + "---|" * len(HEADER)]
+    lines += ["| " + " | ".join(cells(r)) + " |" for r in rows]
+    return "\n".join(lines)
+
+
+def render_csv(rows: list) -> str:
+    """CSV with numeric columns."""
+    head = "agent,episodes,rate_seen,rate_seen_se,rate_unseen,rate_unseen_se,questions_seen,questions_seen_se," \
+           "questions_unseen,questions_unseen_se"
+    lines = [head]
+    for r in rows:
+        nums = [*r["rate_seen"], *r["rate_unseen"], *r["questions_seen"], *r["questions_unseen"]]
+        lines.append(",".join([r["agent"], str(r["episodes"])] + [f"{x:.6g}" for x in nums]))
+    return "\n".join(lines)
