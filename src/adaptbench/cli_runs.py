@@ -57,6 +57,36 @@ def _cmd_eval(args) -> int:
     return 0
 
 
+def _cmd_users_check(args) -> int:
+    from .agents.fidelity import check
+    from .compiler import load_domain
+
+    results, summary = check(load_domain(args.spec))
+    misses = [r for r in results if not r.hit]
+    if args.verbose:
+        for r in misses:
+            print(f"MISS {r.persona}.{r.preference}: {r.question!r} -> {r.answer!r}")
+    print(f"offline user: {summary['hits']}/{summary['probes']} probes answered with the right preference "
+          f"({summary['hit_rate']:.1%}); consistent answers: {'yes' if summary['consistent'] else 'NO'}; "
+          f"location leaks: {summary['location_leaks']}")
+    return 0 if summary["hit_rate"] >= args.min_rate and summary["location_leaks"] == 0 else 1
+
+
+def _cmd_check_solvable(args) -> int:
+    from .compiler import load_domain
+    from .training.rollout import parse_seeds
+    from .training.solvable import unsolved
+
+    domain = load_domain(args.spec)
+    personas = _names(args.personas, domain.persona, "persona")
+    tasks = _names(args.tasks, domain.task, "task")
+    rows = unsolved(args.spec, personas, tasks, parse_seeds(args.seeds), args.workers)
+    for persona, task, seed, pref, reason in rows:
+        print(f"{persona}/{task} seed {seed}: {pref}: {reason}")
+    print(f"{len(rows)} applicable preference(s) the oracle could not satisfy")
+    return 1 if rows else 0
+
+
 def add_commands(sub) -> None:
     """Register rollout and eval."""
     p = sub.add_parser("rollout", help="run agents over personas x tasks x seeds into a JSONL file",
@@ -79,3 +109,24 @@ def add_commands(sub) -> None:
     p.add_argument("--csv", help="also write the table as CSV")
     p.add_argument("--markdown", help="also write the table as Markdown")
     p.set_defaults(func=_cmd_eval)
+
+    p = sub.add_parser("users", help="offline user tools: `adapt users check`")
+    usub = p.add_subparsers(dest="users_command", metavar="SUBCOMMAND")
+    q = usub.add_parser("check", help="probe the offline user with a question per preference and report the hit rate",
+                        description="For every preference, ask questions a planner would ask about it and check that "
+                                    "the offline user answers with that preference; also checks consistency and that "
+                                    "object locations are never revealed. Exit 1 below --min-rate.")
+    q.add_argument("--spec", default="spec", help="spec directory (default: spec)")
+    q.add_argument("--min-rate", type=float, default=0.95, help="fail below this hit rate (default 0.95)")
+    q.add_argument("--verbose", "-v", action="store_true", help="list the probes that missed")
+    q.set_defaults(func=_cmd_users_check)
+
+    p = sub.add_parser("check-solvable", help="report applicable preferences the oracle cannot satisfy",
+                       description="Run the oracle on every persona x task x seed; print every applicable preference "
+                                   "it violates. Each is a spec bug or needs an availability condition. Exit 1 if any.")
+    p.add_argument("--spec", default="spec", help="spec directory (default: spec)")
+    p.add_argument("--personas", default="all", help="'all' or comma-separated ids")
+    p.add_argument("--tasks", default="all", help="'all' or comma-separated ids")
+    p.add_argument("--seeds", default="0-3", help="scene seeds (default 0-3)")
+    p.add_argument("--workers", type=int, default=1, help="parallel processes")
+    p.set_defaults(func=_cmd_check_solvable)

@@ -98,6 +98,12 @@ def rule_names(domain: CompiledDomain, persona: Persona, task: Task) -> set:
     for pref in persona.preferences:
         if applies_to(domain, pref, task):
             out |= {n.name for n in A.walk(pref.rule) if isinstance(n, A.ClsName)}
+    for name in list(out):
+        style = domain.style.get(name)
+        if style is not None:
+            out |= set(style.words) | set(style.verbs)
+            if style.rule is not None:
+                out |= {n.name for n in A.walk(style.rule) if isinstance(n, A.ClsName)}
     return out
 
 

@@ -12,7 +12,8 @@ import re
 from ..compiler.model import CompiledDomain, Persona, Preference, Task
 
 _STOP = set(["a", "an", "the", "of", "to", "in", "on", "for", "and", "or", "with", "do", "does", "did", "you", "your", "i", "me", "my", "would", "like", "prefer", "is", "are", "be", "it", "this", "that", "any", "what", "which", "how", "should", "want", "have", "has", "there", "some"])
-_LOCATION = re.compile(r"\b(where|location|located|find|locate|which (cabinet|drawer|shelf))\b", re.I)
+_LOCATION = re.compile(r"\bwhere (is|are|can i find|do you keep|would i find|should i look)\b|"
+                       r"\bwhich (cabinet|drawer|shelf|cupboard)\b|\b(located|locate)\b|\bfind the\b", re.I)
 NO_PREFERENCE = "I don't have a particular preference about that; go with what you think is best."
 NO_LOCATION = ("I'm not sure where things are kept; please look around and search the kitchen. "
                "I can tell you how I like my breakfast, though.")
@@ -68,9 +69,9 @@ class OfflineUser:
         return self._memory[key]
 
     def _answer(self, question: str) -> str:
-        prefs = self.pick(question)
-        if not prefs and _LOCATION.search(question):
+        if _LOCATION.search(question):
             return NO_LOCATION
+        prefs = self.pick(question)
         if not prefs:
             return NO_PREFERENCE
         return " ".join(p.answer or first_person(p.text) for p in prefs)
