@@ -29,7 +29,7 @@ def run_never_ask(env: Env) -> None:
 
 
 # ------------------------------------------------------------------ always-ask
-_NEGATORS = {"no", "not", "without", "avoid", "never", "don", "dont", "instead", "free", "skip", "nothing"}
+_NEGATORS = {"no", "not", "without", "avoid", "never", "instead", "free", "skip", "nothing", "neither", "nor"}
 
 
 def option_words(domain: CompiledDomain, value: str) -> tuple[set, set]:
@@ -153,7 +153,7 @@ class Oracle:
 
     def score(self, assignment: dict) -> float:
         """satisfied - violated (+ half the progress of violated ones) of a plan, simulated."""
-        env = Env(self.domain, task=self.task.id, persona=self.persona.id, seed=self.seed, full_scene=self.full)
+        env = Env(self.domain, task=self.task.id, persona=self.persona, seed=self.seed, full_scene=self.full)
         env.reset()
         execute(env, assignment)
         ev = env.evaluate()

@@ -25,8 +25,19 @@ def words(text: str) -> set:
     for w in re.findall(r"[a-z]+", text.lower()):
         if w in _STOP or len(w) < 3:
             continue
-        out.add(w[:-1] if w.endswith("s") and not w.endswith("ss") and len(w) > 3 else w)
+        out.add(singular(w))
     return out
+
+
+def singular(w: str) -> str:
+    """A crude singular: berries -> berry, tomatoes -> tomato, eggs -> egg."""
+    if len(w) > 4 and w.endswith("ies"):
+        return w[:-3] + "y"
+    if len(w) > 4 and w.endswith("oes"):
+        return w[:-2]
+    if w.endswith("s") and not w.endswith("ss") and len(w) > 3:
+        return w[:-1]
+    return w
 
 
 def _score(question: set, pref: Preference) -> float:

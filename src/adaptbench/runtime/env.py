@@ -36,18 +36,18 @@ def _compiled(domain: CompiledDomain):
 
 
 class Env:
-    """An ADAPT episode. `user` answers questions: a callable `(question, world) -> str` or an
-    object with `.answer(question, world)`."""
+    """An ADAPT episode. `persona` is an id or a `Persona`; `user` answers questions: a callable
+    `(question, world) -> str` or an object with `.answer(question, world)`."""
 
     def __init__(self, domain: CompiledDomain, task: str, persona: str | None = None, seed: int | None = 0,
                  full_scene: bool = False, user=None, max_steps: int = MAX_STEPS):
         if task not in domain.task:
             raise KeyError(f"unknown task '{task}' (tasks: {', '.join(domain.task)})")
-        if persona is not None and persona not in domain.persona:
+        if isinstance(persona, str) and persona not in domain.persona:
             raise KeyError(f"unknown persona '{persona}' (personas: {', '.join(domain.persona)})")
         self.domain = domain
         self.task = domain.task[task]
-        self.persona = domain.persona[persona] if persona else None
+        self.persona = domain.persona[persona] if isinstance(persona, str) else persona
         self.scene = sample_scene(domain, seed, full_scene)
         self.user = getattr(user, "answer", user)
         self.max_steps = max_steps

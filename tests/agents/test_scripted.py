@@ -1,0 +1,75 @@
+"""Scripted agents: they explore before using things, follow answers, and the oracle beats never-ask."""
+
+from __future__ import annotations
+
+from adaptbench.agents.plans import all_recipes, defaults, execute
+from adaptbench.agents.scripted import RUNNERS, interpret
+from adaptbench.agents.users import OfflineUser
+from adaptbench.compiler.model import Persona, Preference
+from adaptbench.compiler.rules import parse_rule
+from adaptbench.runtime.env import Env
+
+
+def _zed(domain):
+    prefs = (
+        Preference("oat", "Oat milk in coffee", parse_rule("for coffee: it has oat_milk"), ("coffee", "milk"),
+                   "I take my coffee with oat milk."),
+        Preference("patio", "Patio", parse_rule("for all: it served at patio"), ("where", "eat", "breakfast"),
+                   "On the patio, please."),
+        Preference("bev_first", "Drink first",
+                   parse_rule("for all if task has beverage and task has food: beverage served before food"),
+                   ("drink", "before", "after", "food"), "Serve my drink before the food."),
+    )
+    return Persona("zed", "Zed", 99, "", prefs)
+
+
+def _run(domain, agent, task="toast_coffee", seed=0):
+    persona = _zed(domain)
+    env = Env(domain, task=task, persona=persona, seed=seed, user=OfflineUser(domain, persona, domain.task[task]))
+    env.reset()
+    RUNNERS[agent](env)
+    return env, env.evaluate()
+
+
+def test_never_ask_completes_every_task_without_questions(domain):
+    for task in domain.tasks:
+        env = Env(domain, task=task.id, seed=3)
+        env.reset()
+        execute(env, defaults(domain, all_recipes(domain, task)))
+        assert env.evaluate().completed == task.components, task.id
+        assert env.world.questions == 0
+        assert env.world.trace[-1].text == "Declare Done"
+
+
+def test_agents_look_before_they_use(domain):
+    env = Env(domain, task="cereal", seed=1)
+    env.reset()
+    RUNNERS["never-ask"](env)
+    seen_look = False
+    for e in env.world.trace:
+        seen_look |= e.text.startswith("Look for")
+        if e.text.startswith(("Pour", "Move")):
+            assert seen_look
+    assert all(e.ok for e in env.world.trace)
+
+
+def test_oracle_satisfies_what_never_ask_misses(domain):
+    _, never = _run(domain, "never-ask")
+    _, oracle = _run(domain, "oracle")
+    assert oracle.satisfied == 3 and oracle.violated == 0
+    assert never.satisfied < oracle.satisfied
+
+
+def test_always_ask_asks_and_follows_answers(domain):
+    env, ev = _run(domain, "always-ask")
+    assert ev.questions > 5
+    assert {v.id for v in ev.verdicts if v.verdict == "satisfied"} >= {"oat", "patio"}
+
+
+def test_interpret_answers(domain):
+    milk = next(c for c in domain.recipe["cereal"].choices if c.id == "milk")
+    assert interpret(domain, milk, "I like oat milk, it is plant-based.") == "oat_milk"
+    assert interpret(domain, milk, "No milk for me, I eat it dry.") == "none"
+    assert interpret(domain, milk, "I don't mind.") == milk.default[0]
+    toppings = next(c for c in domain.recipe["cereal"].choices if c.id == "toppings")
+    assert set(interpret(domain, toppings, "Strawberries and walnuts please")) >= {"strawberry", "raw_walnuts"}
