@@ -56,6 +56,15 @@ def done_keys(path: Path) -> set:
     return keys
 
 
+def drop_torn_tail(path: Path) -> None:
+    """Cut a partial last line left by a killed run, so appends start on a fresh line."""
+    if not path.exists():
+        return
+    data = path.read_bytes()
+    if data and not data.endswith(b"\n"):
+        path.write_bytes(data[: data.rfind(b"\n") + 1])
+
+
 _DOMAIN = {}
 
 
@@ -88,6 +97,7 @@ def run_episode(job: Job, spec: str = "spec") -> dict:
 def rollout(jobs: list, out: Path, workers: int = 1, spec: str = "spec", progress: bool = True) -> int:
     """Run the jobs not yet in `out`, appending each result as it finishes; returns how many ran."""
     out.parent.mkdir(parents=True, exist_ok=True)
+    drop_torn_tail(out)
     have = done_keys(out)
     todo = [j for j in jobs if j.key not in have]
     bar = Progress(len(todo), f"rollout -> {out.name}") if progress else None
