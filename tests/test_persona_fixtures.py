@@ -8,6 +8,13 @@ Fixtures live in tests/fixtures/trajectories/<persona>/*.yaml:
     scene: full            # or: seed: 3
     actions: [...]
     expect: {preference_id: satisfied | violated | inapplicable}
+    mutations:             # optional: edit the actions and the verdicts must flip
+      - remove: "Pour whole_milk from milk_0 to pan_1"
+        expect: {whole_milk_in_eggs: violated}
+      - replace: ["Pour whole_milk from milk_0 to pan_1", "Pour oat_milk from milk_1 to pan_1"]
+        expect: {...}
+      - swap: ["line a", "line b"]     # exchange the positions of two actions
+        expect: {...}
 """
 
 from __future__ import annotations
@@ -27,19 +34,44 @@ def _load(path: Path) -> dict:
     return yaml.safe_load(path.read_text())
 
 
-@pytest.mark.parametrize("path", FILES, ids=[f"{p.parent.name}/{p.stem}" for p in FILES])
-def test_trajectory_verdicts(domain, path):
-    fx = _load(path)
+def _verdicts(domain, fx: dict, actions: list, label: str) -> dict:
     full = fx.get("scene", "full") == "full"
     env = Env(domain, task=fx["task"], persona=fx["persona"], seed=fx.get("seed"), full_scene=full)
     env.reset()
-    for action in fx["actions"]:
+    for action in actions:
         r = env.step(action)
-        assert r.ok, f"{path.name}: '{action}' failed: {r.observation}"
-    verdicts = {v.id: v for v in env.evaluate().verdicts}
-    for pref, want in fx["expect"].items():
-        assert pref in verdicts, f"{path.name}: unknown preference {pref}"
-        assert verdicts[pref].verdict == want, f"{path.name}: {pref}: {verdicts[pref].reason}"
+        assert r.ok, f"{label}: '{action}' failed: {r.observation}"
+    return {v.id: v for v in env.evaluate().verdicts}
+
+
+def _check(verdicts: dict, expect: dict, label: str) -> None:
+    for pref, want in expect.items():
+        assert pref in verdicts, f"{label}: unknown preference {pref}"
+        assert verdicts[pref].verdict == want, f"{label}: {pref} is {verdicts[pref].verdict}: {verdicts[pref].reason}"
+
+
+def mutate(actions: list, m: dict) -> list:
+    """Apply one mutation (remove / replace / swap) to an action list."""
+    out = list(actions)
+    if "remove" in m:
+        out.remove(m["remove"])
+    elif "replace" in m:
+        old, new = m["replace"]
+        out[out.index(old)] = new
+    elif "swap" in m:
+        a, b = m["swap"]
+        i, j = out.index(a), out.index(b)
+        out[i], out[j] = out[j], out[i]
+    return out
+
+
+@pytest.mark.parametrize("path", FILES, ids=[f"{p.parent.name}/{p.stem}" for p in FILES])
+def test_trajectory_verdicts(domain, path):
+    fx = _load(path)
+    _check(_verdicts(domain, fx, fx["actions"], path.name), fx["expect"], path.name)
+    for k, m in enumerate(fx.get("mutations", ())):
+        label = f"{path.name} mutation {k + 1}"
+        _check(_verdicts(domain, fx, mutate(fx["actions"], m), label), m["expect"], label)
 
 
 def _coverage():
@@ -53,6 +85,7 @@ def _coverage():
 
 @pytest.mark.parametrize("persona", ["juan", "ron", "maya", "ethan"])
 def test_every_preference_is_shown_satisfied_and_violated(domain, persona):
+    """Issue 2's four personas; test_all_personas_have_fixtures widens this to all 16."""
     if persona not in domain.persona:
         pytest.fail(f"persona {persona} is missing from the spec")
     seen = _coverage()
