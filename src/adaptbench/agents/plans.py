@@ -40,6 +40,7 @@ def task_recipes(domain: CompiledDomain, task: Task, assignment: dict | None = N
         r = domain.recipe.get(rid)
         if r is not None and r not in recipes:
             recipes.append(r)
+    recipes += [r for r in domain.recipes if r.optional]
     return _order(domain, recipes, (assignment or {}).get(f"{PLAN}.serve_order", "as_listed"))
 
 
@@ -141,11 +142,20 @@ class Executor:
 
     # ---- steps
     def run_recipe(self, recipe: Recipe) -> None:
-        """Execute a recipe and serve its vessel."""
+        """Execute a recipe and serve its vessel (an optional recipe with nothing chosen does nothing)."""
+        if recipe.optional and not any(self._chosen(recipe, c) for c in recipe.choices if c.multi):
+            return
         self.run_steps(recipe, recipe.steps, {})
         vessel, place = self.value(recipe, recipe.serve), self.value(recipe, "place")
-        if self.find(vessel):
+        if self.find(vessel) and self._holds_food(vessel):
             self.act(f"Move {vessel} to {place}")
+
+    def _chosen(self, recipe: Recipe, choice) -> bool:
+        return bool(self.assignment.get(f"{recipe.id}.{choice.id}", choice.default))
+
+    def _holds_food(self, vessel: str) -> bool:
+        w = self.world
+        return bool(w.contents.get(vessel)) or any(c in w.nodes for c in w.children.get(vessel, ()))
 
     def run_steps(self, recipe: Recipe, steps, env_vars: dict) -> None:
         """Execute a list of steps."""

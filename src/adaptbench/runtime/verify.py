@@ -161,8 +161,8 @@ def _any(outcomes: list) -> Outcome:
                    tuple(sorted({s for r in outcomes for s in r.steps})), max(r.closeness for r in outcomes))
 
 
-def _label(dishes: list) -> str:
-    return ", ".join(d.key for d in dishes) or "nothing served"
+def _label(dishes: list, subject: str = "") -> str:
+    return ", ".join(d.key for d in dishes) or (f"no {subject} dish" if subject else "no dish")
 
 
 def _matches(dishes: list, f):
@@ -178,7 +178,8 @@ def _p_has(node: A.Pred, domain):
         if hits:
             d, n = hits[0]
             return Outcome(True, f"{d.key} has {n.name} ({text})", tuple(sorted({x.arrived for _, x in hits})))
-        return Outcome(False, f"{_label(dishes)} has no {text}")
+        return Outcome(False, f"{_label(dishes, node.subject)} has no {text}" if dishes
+                       else f"no {node.subject} dish was served (wanted one with {text})")
     return has
 
 
@@ -190,7 +191,9 @@ def _p_has_no(node: A.Pred, domain):
         hits = _matches(dishes, f)
         if hits:
             d, n = hits[0]
-            return Outcome(False, f"{d.key} has {n.name} ({text})", tuple(sorted({x.arrived for _, x in hits})))
+            total = sum(len(x.leaves) for x in dishes)
+            return Outcome(False, f"{d.key} has {n.name} ({text})", tuple(sorted({x.arrived for _, x in hits})),
+                           max(0.0, 1 - len(hits) / max(total, 1)))
         return Outcome(True, f"{_label(dishes)} has no {text}")
     return has_no
 
