@@ -137,7 +137,7 @@ def candidate(domain: CompiledDomain, choice: Choice, current, value: str, names
         if _relevant(domain, choice, value, names):
             return tuple(x for x in choice.values if x in current or x == value)
         return None
-    if value != current and _relevant(domain, choice, value, names):
+    if value != current and (_relevant(domain, choice, value, names) or _relevant(domain, choice, current, names)):
         return value
     return None
 

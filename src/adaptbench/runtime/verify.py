@@ -191,9 +191,8 @@ def _p_has_no(node: A.Pred, domain):
         hits = _matches(dishes, f)
         if hits:
             d, n = hits[0]
-            total = sum(len(x.leaves) for x in dishes)
             return Outcome(False, f"{d.key} has {n.name} ({text})", tuple(sorted({x.arrived for _, x in hits})),
-                           max(0.0, 1 - len(hits) / max(total, 1)))
+                           0.5 / len(hits))
         return Outcome(True, f"{_label(dishes)} has no {text}")
     return has_no
 

@@ -9,13 +9,18 @@ from concurrent.futures import ProcessPoolExecutor
 from ..progress import Progress
 
 
+_DOMAINS: dict = {}
+
+
 def _one(args) -> list:
     spec, persona, task, seed = args
     from ..agents.scripted import run_oracle
     from ..compiler import load_domain
     from ..runtime.env import Env
 
-    d = load_domain(spec)
+    if spec not in _DOMAINS:
+        _DOMAINS[spec] = load_domain(spec)
+    d = _DOMAINS[spec]
     env = Env(d, task=task, persona=persona, seed=seed)
     env.reset()
     run_oracle(env)
