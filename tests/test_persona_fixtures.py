@@ -92,3 +92,20 @@ def test_every_preference_is_shown_satisfied_and_violated(domain, persona):
     for pref in domain.persona[persona].preferences:
         got = seen.get((persona, pref.id), set())
         assert {"satisfied", "violated"} <= got, f"{persona}.{pref.id}: fixtures show only {sorted(got)}"
+
+
+def test_all_personas_have_fixtures(domain):
+    """Issue 3: every preference of all 16 personas — satisfied and violated (inapplicable too, since every
+    rule has a task scope); a preference that applies to no shipped task can only be shown inapplicable."""
+    from adaptbench.compiler.lint import applies_to
+
+    seen = _coverage()
+    missing = []
+    for persona in domain.personas:
+        for pref in persona.preferences:
+            got = seen.get((persona.id, pref.id), set())
+            applicable = any(applies_to(domain, pref, t) for t in domain.tasks)
+            want = {"satisfied", "violated", "inapplicable"} if applicable else {"inapplicable"}
+            if not want <= got:
+                missing.append(f"{persona.id}.{pref.id} (has {sorted(got)})")
+    assert not missing, f"{len(missing)} preferences lack fixtures: " + "; ".join(missing[:20])
