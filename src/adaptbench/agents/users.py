@@ -11,7 +11,10 @@ import re
 
 from ..compiler.model import CompiledDomain, Persona, Preference, Task
 
-_STOP = set(["a", "an", "the", "of", "to", "in", "on", "for", "and", "or", "with", "do", "does", "did", "you", "your", "i", "me", "my", "would", "like", "prefer", "is", "are", "be", "it", "this", "that", "any", "what", "which", "how", "should", "want", "have", "has", "there", "some"])
+_STOP = frozenset((
+    "a an the of to in on for and or with do does did you your i me my would like prefer is are be it this "
+    "that any what which how should want have has there some about breakfast please food dish make made "
+    "use also get take").split())
 _LOCATION = re.compile(r"\bwhere (is|are|can i find|do you keep|would i find|should i look)\b|"
                        r"\bwhich (cabinet|drawer|shelf|cupboard)\b|\b(located|locate)\b|\bfind the\b", re.I)
 NO_PREFERENCE = "I don't have a particular preference about that; go with what you think is best."
@@ -48,7 +51,7 @@ def _score(question: set, pref: Preference) -> float:
 class OfflineUser:
     """A deterministic persona user built from the spec (no model)."""
 
-    def __init__(self, domain: CompiledDomain, persona: Persona, task: Task | None = None, max_answers: int = 2):
+    def __init__(self, domain: CompiledDomain, persona: Persona, task: Task | None = None, max_answers: int = 3):
         self.domain, self.persona, self.task = domain, persona, task
         self.max_answers = max_answers
         self._memory: dict[str, str] = {}
