@@ -5,7 +5,7 @@ Fixtures live in tests/fixtures/trajectories/<persona>/*.yaml:
 
     persona: juan
     task: eggs
-    scene: full            # or: seed: 3
+    scene: full            # or: seed: 3 (a sampled scene)
     actions: [...]
     expect: {preference_id: satisfied | violated | inapplicable}
     mutations:             # optional: edit the actions and the verdicts must flip
@@ -35,7 +35,7 @@ def _load(path: Path) -> dict:
 
 
 def _verdicts(domain, fx: dict, actions: list, label: str) -> dict:
-    full = fx.get("scene", "full") == "full"
+    full = fx.get("scene", "full" if "seed" not in fx else "sampled") == "full"
     env = Env(domain, task=fx["task"], persona=fx["persona"], seed=fx.get("seed"), full_scene=full)
     env.reset()
     for action in actions:
@@ -104,8 +104,14 @@ def test_all_personas_have_fixtures(domain):
     for persona in domain.personas:
         for pref in persona.preferences:
             got = seen.get((persona.id, pref.id), set())
-            applicable = any(applies_to(domain, pref, t) for t in domain.tasks)
-            want = {"satisfied", "violated", "inapplicable"} if applicable else {"inapplicable"}
+            applies = [applies_to(domain, pref, t) for t in domain.tasks]
+            conditional = pref.rule.scope is not None and pref.rule.scope.cond is not None
+            if not any(applies):
+                want = {"inapplicable"}
+            elif all(applies) and not conditional:  # e.g. `for all: ...` can never be inapplicable
+                want = {"satisfied", "violated"}
+            else:
+                want = {"satisfied", "violated", "inapplicable"}
             if not want <= got:
                 missing.append(f"{persona.id}.{pref.id} (has {sorted(got)})")
     assert not missing, f"{len(missing)} preferences lack fixtures: " + "; ".join(missing[:20])

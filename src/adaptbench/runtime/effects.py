@@ -115,10 +115,27 @@ def _lookup(world: World, keys: set) -> list:
     return list(hits)
 
 
+def _all_words(world: World, query: str) -> list:
+    """Fallback for multi-word queries ('peanut butter'): movables whose description has every word."""
+    words = [w for w in re.findall(r"[a-z]+", query.lower()) if w not in ("a", "an", "the", "some", "of")]
+    if len(words) < 2:
+        return []
+    want = [_stems(w) for w in words]
+    out = []
+    for e, spec in world.specs.items():
+        if spec.kind != "movable":
+            continue
+        have = {s for w in re.findall(r"[a-z]+", spec.description.lower()) for s in _stems(w)}
+        if all(stems & have for stems in want):
+            out.append(e)
+    return out
+
+
 def reveal_category(world: World, params: dict, b: dict, ctx) -> str:
     """Look for a category in the whole house; matches and their holders become known."""
-    keys = _query_words(_arg(params, b, "query"))
-    hits = _lookup(world, keys)
+    query = _arg(params, b, "query")
+    keys = _query_words(query)
+    hits = _lookup(world, keys) or _all_words(world, query)
     new = []
     for e in sorted(hits, key=_natural):
         for a in [*reversed(list(world.ancestors(e))), e]:
