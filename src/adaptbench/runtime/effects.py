@@ -61,6 +61,7 @@ _INDEX: dict = {}
 
 def _static_keys(spec, domain) -> frozenset:
     keys = {spec.category} | (set(spec.tags) - _GENERIC)
+    keys |= {t.rsplit("_", 1)[1] for t in spec.tags if "_" in t}  # breakfast_cereal -> cereal
     keys |= {s for w in re.findall(r"[a-z]+", spec.description.lower()) for s in _stems(w)}
     keys.add(spec.id.rsplit("_", 1)[0])
     for name in spec.contents:
@@ -68,6 +69,7 @@ def _static_keys(spec, domain) -> frozenset:
         keys.add(name)
         if sub:
             keys |= {sub.category} | (set(sub.tags) - _GENERIC)
+            keys |= {t.rsplit("_", 1)[1] for t in sub.tags if "_" in t}
     return frozenset(keys)
 
 
