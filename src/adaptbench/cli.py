@@ -97,6 +97,8 @@ def main(argv=None) -> int:
         return 2
     try:
         return args.func(args)
+    except SystemExit as exc:  # commands exit 1/2 with a message already printed
+        return exc.code if isinstance(exc.code, int) else 1
     except KeyboardInterrupt:
         return 130
     except BrokenPipeError:

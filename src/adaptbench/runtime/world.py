@@ -57,14 +57,13 @@ class World:
     def __init__(self, domain: CompiledDomain, scene: Scene):
         self.domain = domain
         self.scene = scene
-        self.specs: dict[str, EntitySpec] = {e: domain.entity[e] for e in scene.present}
+        self.specs: dict[str, EntitySpec] = {e.id: e for e in domain.entities if e.id in scene.present}
         self.parent: dict[str, str | None] = dict(scene.location)
-        self.children: dict[str, list] = {e: [] for e in scene.present}
+        self.children: dict[str, list] = {e: [] for e in self.specs}
         for e, loc in scene.location:
             if loc is not None:
                 self.children[loc].append(e)
-        self.sources: dict[str, tuple] = {e: self.specs[e].contents for e in scene.present
-                                          if self.specs[e].contents}
+        self.sources: dict[str, tuple] = {e: s.contents for e, s in self.specs.items() if s.contents}
         self.source_index: dict[str, list] = {}
         for e in sorted(self.sources):
             for sub in self.sources[e]:
@@ -73,7 +72,7 @@ class World:
         self.state: dict[str, set] = {}
         self.arrived: dict[str, int] = {}
         self.nodes: dict[str, Node] = {}  # edible objects' nodes
-        self.known: set = {e for e in scene.present if self.specs[e].kind != "movable"}
+        self.known: set = {e for e, s in self.specs.items() if s.kind != "movable"}
         self.known_contents: set = {c for e in self.known for c in self.specs[e].contents}
         self.used: set = set()
         self.step = 0
@@ -81,8 +80,7 @@ class World:
         self.questions = 0
         self.done = False
         self._nid = 0
-        for e in scene.present:
-            spec = self.specs[e]
+        for e, spec in self.specs.items():
             if "edible" in spec.tags:
                 self.nodes[e] = self.new_node(e, spec.category, frozenset(spec.tags), entity=e)
 
