@@ -8,7 +8,6 @@ from concurrent.futures import ProcessPoolExecutor
 
 from ..progress import Progress
 
-
 _DOMAINS: dict = {}
 
 
