@@ -69,6 +69,7 @@ class Executor:
         self.looked: set = set()
         self.taken: set = set()
         self.resolved: dict = {}
+        self.vessels: set = set()  # serving vessels claimed by earlier recipes
 
     # ---- knowledge
     @property
@@ -135,10 +136,19 @@ class Executor:
         if choice.multi:
             out = tuple(v for v in chosen if v == "none" or self.usable(v, needs.get(v, ())))
         else:
-            order = [chosen] + [v for v in choice.values if v != chosen]
+            serving = name == recipe.serve
+            order = [v for v in [chosen] + self._fallbacks(choice, chosen) if not (serving and v in self.vessels)]
             out = next((v for v in order if v == "none" or self.usable(v, needs.get(v, ()))), chosen)
+            if serving:
+                self.vessels.add(out)
         self.resolved[key] = out
         return out
+
+    def _fallbacks(self, choice, chosen: str) -> list:
+        """Other options, those of the chosen one's category first (another mug for a missing mug)."""
+        cat = self.query_for(chosen)
+        others = [v for v in choice.values if v != chosen]
+        return [v for v in others if self.query_for(v) == cat] + [v for v in others if self.query_for(v) != cat]
 
     # ---- steps
     def run_recipe(self, recipe: Recipe) -> None:

@@ -166,15 +166,13 @@ class Oracle:
         recipes = all_recipes(self.domain, self.task)
         points = choice_points(self.domain, recipes)
         names = rule_names(self.domain, self.persona, self.task)
+        self.serving = {f"{r.id}.{r.serve}" for r in recipes}
         best_a = defaults(self.domain, recipes)
         best = self.score(best_a)
         for _ in range(self.rounds):
             improved = False
             for key, choice in points:
-                for value in choice.values:
-                    cand = candidate(self.domain, choice, best_a[key], value, names)
-                    if cand is None:
-                        continue
+                for cand in self._candidates(choice, best_a, key, names):
                     trial = {**best_a, key: cand}
                     s = self.score(trial)
                     if s > best + 1e-9:
@@ -182,6 +180,36 @@ class Oracle:
             if not improved:
                 break
         return best_a
+
+
+    def _candidates(self, choice: Choice, best_a: dict, key: str, names: set):
+        """Single changes, then (multi choices) swaps of a chosen item for another of its category."""
+        for value in choice.values:
+            if key in self.serving and value != best_a[key]:
+                yield value  # tableware is cheap to try and often matters through fallbacks
+                continue
+            cand = candidate(self.domain, choice, best_a[key], value, names)
+            if cand is not None:
+                yield cand
+        if choice.multi:
+            yield from swaps(self.domain, choice, best_a[key], names)
+
+
+def _category(domain: CompiledDomain, value: str) -> str:
+    if value in domain.substance:
+        return domain.substance[value].category
+    if value in domain.entity:
+        return domain.entity[value].category
+    return value
+
+
+def swaps(domain: CompiledDomain, choice: Choice, current: tuple, names: set):
+    """Multi-choice values with one chosen item replaced by a relevant item of the same category."""
+    for old in current:
+        for new in choice.values:
+            if new not in current and _category(domain, new) == _category(domain, old) \
+                    and _relevant(domain, choice, new, names):
+                yield tuple(new if x == old else x for x in current)
 
 
 def run_oracle(env: Env) -> None:
