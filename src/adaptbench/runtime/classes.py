@@ -33,7 +33,18 @@ def node_matcher(cls):
     raise TypeError(cls)
 
 
-def entity_matcher(cls, world_rooms=None):
+_ROOMS: dict = {}
+
+
+def _rooms(domain) -> frozenset:
+    hit = _ROOMS.get(id(domain))
+    if hit is None or hit[0] is not domain:
+        hit = (domain, frozenset(e.id for e in domain.entities if e.kind == "room"))
+        _ROOMS[id(domain)] = hit
+    return hit[1]
+
+
+def entity_matcher(cls):
     """Compile a class expression to `f(world, entity_id) -> bool`."""
     if isinstance(cls, A.ClsName):
         n = cls.name
@@ -44,7 +55,7 @@ def entity_matcher(cls, world_rooms=None):
                 return False
             if n == eid or n == spec.category or n in spec.tags:
                 return True
-            return spec.kind != "room" and world.room_of(eid) == n
+            return spec.kind != "room" and n in _rooms(world.domain) and world.room_of(eid) == n
         return match
     if isinstance(cls, A.ClsAny):
         fs = [entity_matcher(x) for x in cls.items]

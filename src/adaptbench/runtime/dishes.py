@@ -32,13 +32,13 @@ def dining_place(world: World, eid: str) -> str | None:
 def served_dishes(world: World) -> list:
     """Every served dish, in a stable order."""
     dishes = []
-    for eid in sorted(world.specs):
+    places = [e for e, s in world.specs.items() if "dining_place" in s.tags]
+    on_places = sorted(d for p in places for d in world.descendants(p))
+    for eid in on_places:
         spec = world.specs[eid]
         if spec.kind != "movable":
             continue
         place = dining_place(world, eid)
-        if place is None:
-            continue
         if eid in world.nodes:
             if world.parent[eid] == place:
                 dishes.append(_dish(world, eid, None, place, [world.nodes[eid]]))

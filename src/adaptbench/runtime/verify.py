@@ -316,14 +316,34 @@ def _p_served_before(node: A.Pred, domain):
 
 
 def _p_available(node: A.Pred, domain):
-    ent, item, text = entity_matcher(node.args[0]), node_matcher(node.args[0]), render(node.args[0])
+    item, text = node_matcher(node.args[0]), render(node.args[0])
+
+    def in_scene(d: CompiledDomain, present) -> bool:
+        for eid in present:
+            e = d.entity[eid]
+            if item(_entity_node(d, eid), False, False):
+                return True
+            if any(item(_substance_node(d, s), False, False) for s in e.contents):
+                return True
+        return False
 
     def check(ctx, it):
-        w = ctx.world
-        ok = any(ent(w, e) for e in w.specs) or any(
-            item(_substance_node(ctx.domain, s), False, False) for srcs in w.sources.values() for s in srcs)
+        scene = ctx.world.scene
+        key = (id(node), scene.scene_id)
+        ok = _AVAILABLE.get(key)
+        if ok is None:
+            ok = _AVAILABLE[key] = in_scene(ctx.domain, scene.present)
         return Outcome(ok, f"{text} is {'' if ok else 'not '}available")
     return check
+
+
+@lru_cache(maxsize=4096)
+def _entity_node(domain: CompiledDomain, eid: str) -> Node:
+    e = domain.entity[eid]
+    return Node(0, eid, e.category, frozenset(e.tags), entity=eid)
+
+
+_AVAILABLE: dict = {}  # (predicate, scene) -> bool: availability is a property of the sampled scene
 
 
 @lru_cache(maxsize=1024)
