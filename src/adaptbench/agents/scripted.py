@@ -169,18 +169,35 @@ class Oracle:
         self.serving = {f"{r.id}.{r.serve}" for r in recipes}
         best_a = defaults(self.domain, recipes)
         best = self.score(best_a)
-        for _ in range(self.rounds):
+        unchanged = 0  # choice points checked since the last improvement
+        for step in range(self.rounds * len(points)):
+            key, choice = points[step % len(points)]
             improved = False
-            for key, choice in points:
-                for cand in self._candidates(choice, best_a, key, names):
-                    trial = {**best_a, key: cand}
-                    s = self.score(trial)
-                    if s > best + 1e-9:
-                        best_a, best, improved = trial, s, True
-            if not improved:
+            if not self._active(key, choice, best_a):
+                unchanged += 1
+                continue
+            for cand in self._candidates(choice, best_a, key, names):
+                trial = {**best_a, key: cand}
+                s = self.score(trial)
+                if s > best + 1e-9:
+                    best_a, best, improved = trial, s, True
+            unchanged = 0 if improved else unchanged + 1
+            if unchanged >= len(points):  # a full cycle without improvement: converged
                 break
         return best_a
 
+
+    def _active(self, key: str, choice: Choice, assignment: dict) -> bool:
+        """Whether a choice point can matter under the current plan (its recipe is in it)."""
+        rid = key.split(".", 1)[0]
+        if rid == PLAN:
+            return True
+        recipe = self.domain.recipe[rid]
+        if recipe not in task_recipes(self.domain, self.task, assignment):
+            return False
+        if recipe.optional and not choice.multi:
+            return any(assignment.get(f"{rid}.{c.id}") for c in recipe.choices if c.multi)
+        return True
 
     def _candidates(self, choice: Choice, best_a: dict, key: str, names: set):
         """Single changes, then (multi choices) swaps of a chosen item for another of its category."""

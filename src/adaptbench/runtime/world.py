@@ -51,38 +51,74 @@ class Event:
     reply: str = ""
 
 
+@dataclass
+class _Template:
+    """What every episode on one scene starts from (built once per scene)."""
+
+    specs: dict
+    parent: dict
+    children: dict
+    sources: dict
+    source_index: dict
+    known: frozenset
+    known_contents: frozenset
+    edible: tuple
+
+
+_TEMPLATES: dict = {}
+
+
+def _template(domain: CompiledDomain, scene: Scene) -> _Template:
+    key = (id(domain), scene.scene_id)
+    hit = _TEMPLATES.get(key)
+    if hit is not None and hit[0] is domain:
+        return hit[1]
+    specs = {e.id: e for e in domain.entities if e.id in scene.present}
+    children: dict = {e: [] for e in specs}
+    for e, loc in scene.location:
+        if loc is not None:
+            children[loc].append(e)
+    sources = {e: s.contents for e, s in specs.items() if s.contents}
+    index: dict = {}
+    for e in sorted(sources):
+        for sub in sources[e]:
+            index.setdefault(sub, []).append(e)
+    known = frozenset(e for e, s in specs.items() if s.kind != "movable")
+    t = _Template(specs, dict(scene.location), children, sources, index, known,
+                  frozenset(c for e in known for c in specs[e].contents),
+                  tuple((e, s.category, frozenset(s.tags)) for e, s in specs.items() if "edible" in s.tags))
+    if len(_TEMPLATES) > 1024:
+        _TEMPLATES.clear()
+    _TEMPLATES[key] = (domain, t)
+    return t
+
+
 class World:
     """The mutable state of one episode over a scene of a compiled domain."""
 
     def __init__(self, domain: CompiledDomain, scene: Scene):
         self.domain = domain
         self.scene = scene
-        self.specs: dict[str, EntitySpec] = {e.id: e for e in domain.entities if e.id in scene.present}
-        self.parent: dict[str, str | None] = dict(scene.location)
-        self.children: dict[str, list] = {e: [] for e in self.specs}
-        for e, loc in scene.location:
-            if loc is not None:
-                self.children[loc].append(e)
-        self.sources: dict[str, tuple] = {e: s.contents for e, s in self.specs.items() if s.contents}
-        self.source_index: dict[str, list] = {}
-        for e in sorted(self.sources):
-            for sub in self.sources[e]:
-                self.source_index.setdefault(sub, []).append(e)
+        t = _template(domain, scene)
+        self.specs: dict[str, EntitySpec] = dict(t.specs)
+        self.parent: dict[str, str | None] = dict(t.parent)
+        self.children: dict[str, list] = {k: list(v) for k, v in t.children.items()}
+        self.sources: dict[str, tuple] = t.sources  # never changed during an episode
+        self.source_index: dict[str, list] = t.source_index
         self.contents: dict[str, list] = {}
         self.state: dict[str, set] = {}
         self.arrived: dict[str, int] = {}
-        self.nodes: dict[str, Node] = {}  # edible objects' nodes
-        self.known: set = {e for e, s in self.specs.items() if s.kind != "movable"}
-        self.known_contents: set = {c for e in self.known for c in self.specs[e].contents}
+        self.known: set = set(t.known)
+        self.known_contents: set = set(t.known_contents)
         self.used: set = set()
         self.step = 0
         self.trace: list[Event] = []
         self.questions = 0
         self.done = False
         self._nid = 0
-        for e, spec in self.specs.items():
-            if "edible" in spec.tags:
-                self.nodes[e] = self.new_node(e, spec.category, frozenset(spec.tags), entity=e)
+        self.nodes: dict[str, Node] = {}  # edible objects' nodes
+        for e, category, tags in t.edible:
+            self.nodes[e] = self.new_node(e, category, tags, entity=e)
 
     # ---- nodes
     def new_node(self, name, category, tags, inputs=(), verb=None, entity=None) -> Node:
