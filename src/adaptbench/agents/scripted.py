@@ -150,16 +150,20 @@ class Oracle:
         self.domain, self.task, self.persona = domain, task, persona
         self.seed, self.full, self.rounds = seed, full_scene, rounds
         self.simulations = 0
+        self._scores: dict = {}
 
     def score(self, assignment: dict) -> float:
         """satisfied - violated (+ half the progress of violated ones) of a plan, simulated."""
         env = Env(self.domain, task=self.task.id, persona=self.persona, seed=self.seed, full_scene=self.full)
         env.reset()
         execute(env, assignment)
-        ev = env.evaluate()
         self.simulations += 1
-        near = sum(v.progress for v in ev.verdicts if v.verdict == "violated")
-        return ev.satisfied - ev.violated + 0.5 * near
+        trace = tuple(e.text for e in env.world.trace)
+        if trace not in self._scores:  # different choices often end in the same actions
+            ev = env.evaluate()
+            near = sum(v.progress for v in ev.verdicts if v.verdict == "violated")
+            self._scores[trace] = ev.satisfied - ev.violated + 0.5 * near
+        return self._scores[trace]
 
     def search(self) -> dict:
         """The best assignment found."""
