@@ -146,7 +146,7 @@ class Oracle:
     """Greedy search over recipe choices, scored by the persona's verifiers in the simulator."""
 
     def __init__(self, domain: CompiledDomain, task: Task, persona: Persona, seed, full_scene: bool,
-                 rounds: int = 2):
+                 rounds: int = 3):
         self.domain, self.task, self.persona = domain, task, persona
         self.seed, self.full, self.rounds = seed, full_scene, rounds
         self.simulations = 0
@@ -180,11 +180,19 @@ class Oracle:
             if not self._active(key, choice, best_a):
                 unchanged += 1
                 continue
-            for cand in self._candidates(choice, best_a, key, names):
-                trial = {**best_a, key: cand}
-                s = self.score(trial)
-                if s > best + 1e-9:
-                    best_a, best, improved = trial, s, True
+            tried: set = set()
+            while True:  # candidates are rebuilt from the best so far after each improvement
+                fresh = [c for c in self._candidates(choice, best_a, key, names) if c not in tried]
+                better = None
+                for cand in fresh:
+                    tried.add(cand)
+                    s = self.score({**best_a, key: cand})
+                    if s > best + 1e-9:
+                        better, best = cand, s
+                        break
+                if better is None:
+                    break
+                best_a, improved = {**best_a, key: better}, True
             unchanged = 0 if improved else unchanged + 1
             if unchanged >= len(points):  # a full cycle without improvement: converged
                 break
