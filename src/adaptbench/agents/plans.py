@@ -69,7 +69,7 @@ class Executor:
         self.looked: set = set()
         self.taken: set = set()
         self.resolved: dict = {}
-        self.vessels: set = set()  # serving vessels claimed by earlier recipes
+        self.vessels: dict = {}  # movable entity -> the choice that claimed it (plates, cups, pans)
 
     # ---- knowledge
     @property
@@ -136,13 +136,18 @@ class Executor:
         if choice.multi:
             out = tuple(v for v in chosen if v == "none" or self.usable(v, needs.get(v, ())))
         else:
-            serving = name == recipe.serve
-            order = [v for v in [chosen] + self._fallbacks(choice, chosen) if not (serving and v in self.vessels)]
+            exclusive = key.split(".")[0] != PLAN  # a pan, plate or cup belongs to one choice only
+            order = [v for v in [chosen] + self._fallbacks(choice, chosen)
+                     if not (exclusive and self.vessels.get(v, key) != key)]
             out = next((v for v in order if v == "none" or self.usable(v, needs.get(v, ()))), chosen)
-            if serving:
-                self.vessels.add(out)
+            if exclusive and self._movable(out):
+                self.vessels[out] = key
         self.resolved[key] = out
         return out
+
+    def _movable(self, value: str) -> bool:
+        spec = self.domain.entity.get(value)
+        return spec is not None and spec.kind == "movable"
 
     def _fallbacks(self, choice, chosen: str) -> list:
         """Other options, those of the chosen one's category first (another mug for a missing mug)."""
@@ -207,7 +212,8 @@ class Executor:
         """A known container holding a substance (finding it first)."""
         self.find(substance)
         holders = self._holders(substance)
-        return holders[0] if holders else "None"
+        endless = [h for h in holders if substance in self.world.sources.get(h, ())]
+        return (endless or holders or ["None"])[0]  # never take it back out of a dish
 
     def add(self, what: str, vessel: str) -> None:
         """Put an ingredient (substance, object or category) into a vessel."""
