@@ -168,7 +168,10 @@ class Oracle:
     def search(self) -> dict:
         """The best assignment found."""
         recipes = all_recipes(self.domain, self.task)
-        points = choice_points(self.domain, recipes)
+        # toppings and other additions before substitutions: adding to a default dish first keeps
+        # the search out of corners (granola as the cereal itself cannot come after the fruit)
+        points = sorted(choice_points(self.domain, recipes), key=lambda p: (p[0].split(".")[0] != PLAN,
+                                                                           not p[1].multi))
         names = rule_names(self.domain, self.persona, self.task)
         self.serving = {f"{r.id}.{r.serve}" for r in recipes}
         best_a = defaults(self.domain, recipes)
