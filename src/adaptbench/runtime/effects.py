@@ -4,6 +4,7 @@ an observation that replaces the action's `success` text (searches, questions)."
 from __future__ import annotations
 
 import re
+from functools import lru_cache
 
 from ..compiler.model import EntitySpec
 from .actions import ActionFailed, Ref
@@ -40,19 +41,21 @@ def reveal_in(world: World, params: dict, b: dict, ctx) -> str:
 _PLURAL = [("ies", "y"), ("oes", "o"), ("ches", "ch"), ("shes", "sh"), ("ses", "s"), ("s", "")]
 
 
-def _stems(word: str) -> set:
+@lru_cache(maxsize=8192)
+def _stems(word: str) -> frozenset:
     out = {word}
     for suffix, repl in _PLURAL:
         if word.endswith(suffix) and len(word) > len(suffix) + 2:
             out.add(word[: -len(suffix)] + repl)
-    return out
+    return frozenset(out)
 
 
-def _query_words(query: str) -> set:
+@lru_cache(maxsize=4096)
+def _query_words(query: str) -> frozenset:
     words = re.findall(r"[a-z]+", query.lower().replace("_", " "))
     words = [w for w in words if w not in ("a", "an", "the", "some", "of")]
     key = "_".join(words)
-    return _stems(key) | ({s for w in words for s in _stems(w)} if len(words) == 1 else set())
+    return _stems(key) | (frozenset(s for w in words for s in _stems(w)) if len(words) == 1 else frozenset())
 
 
 _GENERIC = {"movable", "container", "source", "edible", "food"}
@@ -138,10 +141,11 @@ def reveal_category(world: World, params: dict, b: dict, ctx) -> str:
     query = _arg(params, b, "query")
     keys = _query_words(query)
     hits = _lookup(world, keys) or _all_words(world, query)
-    new = []
+    new, seen = [], set(world.known)
     for e in sorted(hits, key=_natural):
         for a in [*reversed(list(world.ancestors(e))), e]:
-            if a not in world.known and a not in new:
+            if a not in seen:
+                seen.add(a)
                 new.append(a)
     world.known.update(new)
     for e in new:

@@ -83,10 +83,20 @@ class Ctx:
         self.domain, self.world, self.task = domain, world, task
         self.task_components = set(task.components)
         self.dishes = served_dishes(world)
-        for d in self.dishes:
-            for c in domain.components:
-                if compiled(domain, c.completion)(self, [d]).ok:
-                    d.completes.add(c.id)
+        self._done: dict = {}  # (dish key, component) -> completes?
+
+    def completes(self, dish: Dish, comps) -> bool:
+        """Whether a dish completes any of the components (each checked once, on demand)."""
+        for c in comps:
+            key = (dish.key, c)
+            hit = self._done.get(key)
+            if hit is None:
+                hit = self._done[key] = compiled(self.domain, self.domain.component[c].completion)(self, [dish]).ok
+                if hit:
+                    dish.completes.add(c)
+            if hit:
+                return True
+        return False
 
     def expand(self, name: str) -> set:
         """Component ids a component or group name stands for."""
@@ -99,9 +109,9 @@ class Ctx:
         if name == "meal":
             return self.dishes
         if name == "sides":
-            return [d for d in self.dishes if not d.completes & self.task_components]
+            return [d for d in self.dishes if not self.completes(d, self.task_components)]
         comps = self.expand(name) & self.task_components or self.expand(name)
-        return [d for d in self.dishes if d.completes & comps]
+        return [d for d in self.dishes if self.completes(d, comps)]
 
 
 _COMPILED: dict = {}
@@ -376,7 +386,7 @@ def _p_made(node: A.Pred, domain):
 
     def check(ctx, it):
         comps = ctx.expand(name)
-        hits = [d for d in ctx.dishes if d.completes & comps]
+        hits = [d for d in ctx.dishes if ctx.completes(d, comps)]
         return Outcome(bool(hits), f"{name} {'served in ' + _label(hits) if hits else 'was not served'}",
                        tuple(d.served_step for d in hits))
     return check
@@ -403,7 +413,7 @@ def verdict(ctx: Ctx, pref) -> Verdict:
     f = compiled(ctx.domain, rule)
     results = []
     for c in comps:
-        dishes = [d for d in ctx.dishes if c in d.completes]
+        dishes = [d for d in ctx.dishes if ctx.completes(d, (c,))]
         results.append(f(ctx, dishes) if dishes else Outcome(False, f"{c} was not completed"))
     progress = sum(r.closeness for r in results) / len(results)
     for r in results:
@@ -416,5 +426,5 @@ def evaluate(domain: CompiledDomain, world: World, task: Task, persona: Persona 
     """Evaluate every preference of `persona` on the episode in `world`."""
     ctx = Ctx(domain, world, task)
     verdicts = tuple(verdict(ctx, p) for p in persona.preferences) if persona else ()
-    completed = tuple(c for c in task.components if any(c in d.completes for d in ctx.dishes))
+    completed = tuple(c for c in task.components if any(ctx.completes(d, (c,)) for d in ctx.dishes))
     return Evaluation(verdicts, world.questions, completed)
