@@ -61,6 +61,20 @@ def _order(domain: CompiledDomain, recipes: list, order: str) -> list:
     return recipes
 
 
+_CATEGORIES: dict = {}
+
+
+def _by_category(domain: CompiledDomain) -> dict:
+    """Substance ids by category (built once per domain)."""
+    hit = _CATEGORIES.get(id(domain))
+    if hit is None or hit[0] is not domain:
+        table: dict = {}
+        for s in domain.substances:
+            table.setdefault(s.category, []).append(s.id)
+        hit = _CATEGORIES[id(domain)] = (domain, table)
+    return hit[1]
+
+
 class Executor:
     """Runs an assignment in an env, exploring as it goes."""
 
@@ -109,7 +123,7 @@ class Executor:
         if value in d.substance:
             return bool(self._holders(value))
         return any(w.specs[e].category == value for e in w.known if e in w.specs and e not in self.taken) or \
-            any(self._holders(s.id) for s in d.substances if s.category == value)
+            any(self._holders(s) for s in _by_category(d).get(value, ()))
 
     def _holders(self, substance: str) -> list:
         return self.world.holders_of(substance)
@@ -226,7 +240,7 @@ class Executor:
             return
         eid = what if what in self.world.specs else self._pick(what, vessel)
         if eid is None:
-            sub = next((s.id for s in self.domain.substances if s.category == what and self._holders(s.id)), None)
+            sub = next((s for s in _by_category(self.domain).get(what, ()) if self._holders(s)), None)
             if sub:
                 self.add(sub, vessel)
             return
