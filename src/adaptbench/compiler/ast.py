@@ -149,3 +149,23 @@ def shift(node, line_offset: int, col_offset: int):
                for f in fields(node) if f.name not in ("line", "col")}
     col = node.col + (col_offset if node.line == 1 else 0)
     return replace(node, line=node.line + line_offset, col=col, **changes)
+
+
+def render_cls(cls) -> str:
+    """Class expression back to text."""
+    if isinstance(cls, ClsName):
+        return cls.name
+    if isinstance(cls, ClsAny):
+        return " | ".join(render_cls(x) for x in cls.items)
+    if isinstance(cls, ClsAll):
+        return " & ".join(_paren(x) for x in cls.items)
+    if isinstance(cls, ClsNeg):
+        return "!" + _paren(cls.item)
+    if isinstance(cls, ClsMod):
+        return f"{cls.mod} {_paren(cls.item)}"
+    return str(cls)
+
+
+def _paren(cls) -> str:
+    text = render_cls(cls)
+    return f"({text})" if isinstance(cls, ClsAny | ClsAll) else text

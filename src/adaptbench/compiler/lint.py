@@ -105,9 +105,7 @@ def _empty_classes(pref: Preference, items: list, rooms: dict, file: str) -> lis
 
 
 def _text(cls) -> str:
-    from ..runtime.classes import render
-
-    return render(cls)
+    return A.render_cls(cls)
 
 
 def _atoms(pref: Preference) -> list:

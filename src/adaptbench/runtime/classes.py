@@ -76,21 +76,4 @@ def names_in(cls) -> list:
     return [n.name for n in A.walk(cls) if isinstance(n, A.ClsName)]
 
 
-def render(cls) -> str:
-    """Class expression back to text."""
-    if isinstance(cls, A.ClsName):
-        return cls.name
-    if isinstance(cls, A.ClsAny):
-        return " | ".join(render(x) for x in cls.items)
-    if isinstance(cls, A.ClsAll):
-        return " & ".join(_paren(x) for x in cls.items)
-    if isinstance(cls, A.ClsNeg):
-        return "!" + _paren(cls.item)
-    if isinstance(cls, A.ClsMod):
-        return f"{cls.mod} {_paren(cls.item)}"
-    return str(cls)
-
-
-def _paren(cls) -> str:
-    text = render(cls)
-    return f"({text})" if isinstance(cls, A.ClsAny | A.ClsAll) else text
+render = A.render_cls  # class expression back to text
