@@ -19,26 +19,36 @@ class Node:
 # ---- class expressions: which items/entities a name matches ----
 @dataclass(frozen=True)
 class ClsName(Node):
+    """A class name: category, tag, entity, room or substance id (or a style / verb group)."""
+
     name: str
 
 
 @dataclass(frozen=True)
 class ClsAny(Node):
+    """`a | b`: matches either."""
+
     items: tuple
 
 
 @dataclass(frozen=True)
 class ClsAll(Node):
+    """`a & b`: matches both."""
+
     items: tuple
 
 
 @dataclass(frozen=True)
 class ClsNeg(Node):
+    """`!a`: does not match."""
+
     item: object
 
 
 @dataclass(frozen=True)
 class ClsMod(Node):
+    """`heated a` / `chopped a`: an ingredient that was heated / cut on its way into the dish."""
+
     mod: str
     item: object
 
@@ -46,26 +56,36 @@ class ClsMod(Node):
 # ---- boolean expressions ----
 @dataclass(frozen=True)
 class Const(Node):
+    """`true` or `false`."""
+
     value: bool
 
 
 @dataclass(frozen=True)
 class AnyOf(Node):
+    """`a or b`."""
+
     items: tuple
 
 
 @dataclass(frozen=True)
 class AllOf(Node):
+    """`a and b`."""
+
     items: tuple
 
 
 @dataclass(frozen=True)
 class Not(Node):
+    """`not a`."""
+
     item: object
 
 
 @dataclass(frozen=True)
 class IfElse(Node):
+    """`if c then a else b`."""
+
     cond: object
     then: object
     other: object
@@ -86,12 +106,16 @@ class Pred(Node):
 
 @dataclass(frozen=True)
 class Scope(Node):
+    """`for targets [if cond]:` of a preference rule."""
+
     targets: tuple
     cond: object | None
 
 
 @dataclass(frozen=True)
 class Rule(Node):
+    """A parsed rule: optional scope, expression, its source text and file."""
+
     scope: Scope | None
     expr: object
     source: str = ""
