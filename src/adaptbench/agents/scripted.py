@@ -177,7 +177,8 @@ class Oracle:
         best_a = defaults(self.domain, recipes)
         best = self.score(best_a)
         unchanged = 0  # choice points checked since the last improvement
-        for step in range(self.rounds * len(points)):
+        self.use_swaps = False  # swaps are tried once single changes have converged
+        for step in range((self.rounds + 1) * len(points)):
             key, choice = points[step % len(points)]
             improved = False
             if not self._active(key, choice, best_a):
@@ -196,9 +197,14 @@ class Oracle:
                 if better is None:
                     break
                 best_a, improved = {**best_a, key: better}, True
+            if improved and self.use_swaps:  # a swap helped: back to single changes
+                self.use_swaps, unchanged = False, 0
+                continue
             unchanged = 0 if improved else unchanged + 1
             if unchanged >= len(points):  # a full cycle without improvement: converged
-                break
+                if self.use_swaps:
+                    break
+                self.use_swaps, unchanged = True, 0
         return best_a
 
 
@@ -215,7 +221,11 @@ class Oracle:
         return True
 
     def _candidates(self, choice: Choice, best_a: dict, key: str, names: set):
-        """Single changes, then (multi choices) swaps of a chosen item for another of its category."""
+        """Single changes; once those have converged, swaps of a chosen item for another of its family."""
+        if self.use_swaps:
+            if choice.multi:
+                yield from swaps(self.domain, choice, best_a[key], names)
+            return
         for value in choice.values:
             if key in self.serving and value != best_a[key]:
                 yield value  # tableware is cheap to try and often matters through fallbacks
@@ -223,16 +233,20 @@ class Oracle:
             cand = candidate(self.domain, choice, best_a[key], value, names)
             if cand is not None:
                 yield cand
-        if choice.multi:
-            yield from swaps(self.domain, choice, best_a[key], names)
+
+
+_FAMILIES = ("breakfast_cereal", "creamer", "sweetener", "fruit", "nut", "seed", "spice", "herb", "cheese")
 
 
 def _category(domain: CompiledDomain, value: str) -> str:
-    if value in domain.substance:
-        return domain.substance[value].category
-    if value in domain.entity:
-        return domain.entity[value].category
-    return value
+    """The family an option is swapped within: a broad tag (cereal, fruit, sweetener ...) or its category."""
+    item = domain.substance.get(value) or domain.entity.get(value)
+    if item is None:
+        members = [e for e in domain.entities if e.category == value]
+        item = members[0] if members else None
+    if item is None:
+        return value
+    return next((f for f in _FAMILIES if f in item.tags or f == item.category), item.category)
 
 
 def swaps(domain: CompiledDomain, choice: Choice, current: tuple, names: set):
