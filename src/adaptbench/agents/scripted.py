@@ -173,7 +173,6 @@ class Oracle:
         points = sorted(choice_points(self.domain, recipes), key=lambda p: (p[0].split(".")[0] != PLAN,
                                                                            not p[1].multi))
         names = rule_names(self.domain, self.persona, self.task)
-        self.serving = {f"{r.id}.{r.serve}" for r in recipes}
         best_a = defaults(self.domain, recipes)
         best = self.score(best_a)
         unchanged = 0  # choice points checked since the last improvement
@@ -227,9 +226,6 @@ class Oracle:
                 yield from swaps(self.domain, choice, best_a[key], names)
             return
         for value in choice.values:
-            if key in self.serving and value != best_a[key]:
-                yield value  # tableware is cheap to try and often matters through fallbacks
-                continue
             cand = candidate(self.domain, choice, best_a[key], value, names)
             if cand is not None:
                 yield cand
