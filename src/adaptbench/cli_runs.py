@@ -48,8 +48,13 @@ def _cmd_eval(args) -> int:
     if missing:
         print(f"adapt: no such file: {', '.join(missing)}", file=sys.stderr)
         return 2
-    rows = table(load_records(args.runs))
+    records = load_records(args.runs)
+    rows = table(records)
     print(render_text(rows))
+    if args.plot:
+        from .training.plots import svg
+
+        Path(args.plot).write_text(svg(rows, records))
     if args.csv:
         Path(args.csv).write_text(render_csv(rows) + "\n")
     if args.markdown:
@@ -108,6 +113,7 @@ def add_commands(sub) -> None:
     p.add_argument("runs", nargs="+", help="JSONL files written by adapt rollout")
     p.add_argument("--csv", help="also write the table as CSV")
     p.add_argument("--markdown", help="also write the table as Markdown")
+    p.add_argument("--plot", help="also draw satisfaction per agent and per persona as an SVG file")
     p.set_defaults(func=_cmd_eval)
 
     p = sub.add_parser("users", help="offline user tools: `adapt users check`")

@@ -51,3 +51,15 @@ def test_cli_rollout_then_eval(tmp_path, domain, capsys):
     text = capsys.readouterr().out
     assert "never-ask" in text and "oracle" in text and "Satisfaction (seen)" in text
     assert md.read_text().startswith("| Method |")
+
+
+def test_eval_plot_is_valid_svg(tmp_path):
+    import xml.etree.ElementTree as ET
+
+    from adaptbench.training.plots import svg
+
+    recs = [{"agent": a, "persona": p, "satisfaction_rate": r, "questions": q}
+            for a, r, q in (("never-ask", 0.3, 0), ("oracle", 0.9, 0)) for p in ("juan", "ron")]
+    root = ET.fromstring(svg(table(recs), recs))
+    texts = [t.text for t in root.iter("{http://www.w3.org/2000/svg}text")]
+    assert "oracle" in texts and "juan" in texts and "90%" in texts
