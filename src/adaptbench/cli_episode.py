@@ -125,8 +125,13 @@ def _cmd_play(args) -> int:
     return 0
 
 
-def _common(p, seed: bool = True) -> None:
+def add_spec_option(p) -> None:
+    """The `--spec DIR` option every command that loads the domain takes."""
     p.add_argument("--spec", default="spec", help="spec directory (default: spec)")
+
+
+def _common(p) -> None:
+    add_spec_option(p)
     p.add_argument("--task", required=True, help="task id, e.g. eggs, toast_coffee")
     p.add_argument("--persona", required=True, help="persona id, e.g. juan, ron")
     p.add_argument("--max-steps", type=int, default=50, help="step limit (default 50)")
@@ -137,7 +142,7 @@ def add_commands(sub) -> None:
     p = sub.add_parser("scene", help="sample a scene and list its objects",
                        description="Sample the scene for a seed (every room, furniture and mandatory object; "
                                    "other movables with p=0.7) and print it.")
-    p.add_argument("--spec", default="spec", help="spec directory (default: spec)")
+    add_spec_option(p)
     p.add_argument("--seed", type=int, default=0, help="scene seed (default 0)")
     p.add_argument("--full", action="store_true", help="include every object")
     p.add_argument("--json", action="store_true", help="print JSON")

@@ -5,6 +5,8 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from .cli_episode import add_spec_option
+
 
 def _names(text: str, pool: dict, what: str) -> list:
     if text == "all":
@@ -92,18 +94,22 @@ def _cmd_check_solvable(args) -> int:
     return 1 if rows else 0
 
 
+def _grid_options(p, seeds_help: str) -> None:
+    add_spec_option(p)
+    p.add_argument("--personas", default="all", help="'all' or comma-separated ids")
+    p.add_argument("--tasks", default="all", help="'all' or comma-separated ids")
+    p.add_argument("--seeds", default="0-3", help=seeds_help)
+    p.add_argument("--workers", type=int, default=1, help="parallel processes (default 1)")
+
+
 def add_commands(sub) -> None:
     """Register rollout and eval."""
     p = sub.add_parser("rollout", help="run agents over personas x tasks x seeds into a JSONL file",
                        description="Run episodes and append one JSON line each to --out as they finish. "
                                    "Re-running the same command resumes: episodes already in the file are skipped.")
-    p.add_argument("--spec", default="spec", help="spec directory (default: spec)")
+    _grid_options(p, "scene seeds, e.g. 0-3 or 0,4,9 (default 0-3)")
     p.add_argument("--agent", required=True, help="oracle, never-ask, always-ask (comma-separated for several)")
-    p.add_argument("--personas", default="all", help="'all' or comma-separated ids")
-    p.add_argument("--tasks", default="all", help="'all' or comma-separated ids")
-    p.add_argument("--seeds", default="0-3", help="scene seeds, e.g. 0-3 or 0,4,9 (default 0-3)")
     p.add_argument("--out", required=True, help="results file, e.g. runs/oracle.jsonl")
-    p.add_argument("--workers", type=int, default=1, help="parallel processes (default 1)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_rollout)
 
@@ -122,7 +128,7 @@ def add_commands(sub) -> None:
                         description="For every preference, ask questions a planner would ask about it and check that "
                                     "the offline user answers with that preference; also checks consistency and that "
                                     "object locations are never revealed. Exit 1 below --min-rate.")
-    q.add_argument("--spec", default="spec", help="spec directory (default: spec)")
+    add_spec_option(q)
     q.add_argument("--min-rate", type=float, default=0.95, help="fail below this hit rate (default 0.95)")
     q.add_argument("--verbose", "-v", action="store_true", help="list the probes that missed")
     q.set_defaults(func=_cmd_users_check)
@@ -130,9 +136,5 @@ def add_commands(sub) -> None:
     p = sub.add_parser("check-solvable", help="report applicable preferences the oracle cannot satisfy",
                        description="Run the oracle on every persona x task x seed; print every applicable preference "
                                    "it violates. Each is a spec bug or needs an availability condition. Exit 1 if any.")
-    p.add_argument("--spec", default="spec", help="spec directory (default: spec)")
-    p.add_argument("--personas", default="all", help="'all' or comma-separated ids")
-    p.add_argument("--tasks", default="all", help="'all' or comma-separated ids")
-    p.add_argument("--seeds", default="0-3", help="scene seeds (default 0-3)")
-    p.add_argument("--workers", type=int, default=1, help="parallel processes")
+    _grid_options(p, "scene seeds (default 0-3)")
     p.set_defaults(func=_cmd_check_solvable)

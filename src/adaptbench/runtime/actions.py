@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 from ..compiler import ast as A
 from ..compiler.model import ActionSpec, CompiledDomain
-from .classes import entity_matcher, node_matcher, render
+from .classes import entity_matcher, node_matcher
 from .world import Node, World
 
 
@@ -265,8 +265,3 @@ def _p_holds(node: A.Pred, types: dict):
 
 
 _PRED = {"is": _p_is, "contains": _p_contains, "on": _p_on, "within": _p_within, "holds": _p_holds}
-
-
-def describe_check(rule: A.Rule) -> str:
-    """A short text of a precondition for messages."""
-    return rule.source or render(rule.expr)

@@ -71,9 +71,4 @@ def entity_matcher(cls):
     raise TypeError(cls)
 
 
-def names_in(cls) -> list:
-    """The plain names used in a class expression."""
-    return [n.name for n in A.walk(cls) if isinstance(n, A.ClsName)]
-
-
 render = A.render_cls  # class expression back to text

@@ -29,16 +29,3 @@ def layout(world: World) -> str:
             if world.specs[f].kind == "furniture":
                 lines.append(f"  - {describe(world, f)}")
     return "\n".join(lines)
-
-
-def full_state(world: World) -> str:
-    """The whole house as a tree (what the persona prompt shows)."""
-    lines: list = []
-
-    def walk(eid: str, depth: int) -> None:
-        lines.append("  " * depth + f"- {describe(world, eid)}")
-        for c in world.children.get(eid, ()):
-            walk(c, depth + 1)
-    for room in (e for e, s in world.specs.items() if s.kind == "room"):
-        walk(room, 0)
-    return "\n".join(lines)

@@ -179,31 +179,38 @@ def _matches(dishes: list, f):
     return [(d, n) for d in dishes for n, h, c in d.leaves if f(n, h, c)]
 
 
-def _p_has(node: A.Pred, domain):
+def _presence(node: A.Pred):
+    """`f(ctx, it) -> (hits, found, steps, absent)`: ingredients of the subject's dishes matching the
+    class, why (when found / when absent), and the steps they arrived at. Shared by has and has no."""
     f, text = node_matcher(node.args[0]), render(node.args[0])
 
-    def has(ctx, it):
+    def look(ctx, it):
         dishes = ctx.subject(node.subject, it)
         hits = _matches(dishes, f)
         if hits:
             d, n = hits[0]
-            return Outcome(True, f"{d.key} has {n.name} ({text})", tuple(sorted({x.arrived for _, x in hits})))
-        return Outcome(False, f"{_label(dishes, node.subject)} has no {text}" if dishes
-                       else f"no {node.subject} dish was served (wanted one with {text})")
+            return hits, f"{d.key} has {n.name} ({text})", tuple(sorted({x.arrived for _, x in hits})), ""
+        absent = (f"{_label(dishes, node.subject)} has no {text}" if dishes
+                  else f"no {node.subject} dish was served (wanted one with {text})")
+        return hits, "", (), absent
+    return look
+
+
+def _p_has(node: A.Pred, domain):
+    look = _presence(node)
+
+    def has(ctx, it):
+        hits, found, steps, absent = look(ctx, it)
+        return Outcome(True, found, steps) if hits else Outcome(False, absent)
     return has
 
 
 def _p_has_no(node: A.Pred, domain):
-    f, text = node_matcher(node.args[0]), render(node.args[0])
+    look = _presence(node)
 
     def has_no(ctx, it):
-        dishes = ctx.subject(node.subject, it)
-        hits = _matches(dishes, f)
-        if hits:
-            d, n = hits[0]
-            return Outcome(False, f"{d.key} has {n.name} ({text})", tuple(sorted({x.arrived for _, x in hits})),
-                           0.5 / len(hits))
-        return Outcome(True, f"{_label(dishes)} has no {text}")
+        hits, found, steps, absent = look(ctx, it)
+        return Outcome(False, found, steps, 0.5 / len(hits)) if hits else Outcome(True, absent)
     return has_no
 
 
