@@ -31,7 +31,8 @@ EFFECTS = {
 }
 
 PRE_OPS = {"is", "contains", "on", "within", "holds"}
-DISH_OPS = {"has", "has_no", "has_only", "is", "made_in", "cooked_in", "adds_before", "count"}
+DISH_OPS = {"has", "has_no", "has_only", "is", "made_in", "made_with", "topped_with", "made_by", "cooked_in",
+            "adds_before", "count"}
 PREF_OPS = DISH_OPS | {"served_at", "served_in", "served_before", "available", "uses", "task_has", "made"}
 DISH_SUBJECTS = {"meal", "sides"}
 _SLOT_RE = re.compile(r"\{(\w+)\}")
@@ -229,6 +230,8 @@ def _check_pred(node: A.Pred, context: str, names: Names, slots: dict, scoped: b
 
 
 def _cls_pool(node: A.Pred, context: str, names: Names, slots: dict) -> tuple:
+    if node.op == "made_by":
+        return ("verb group", names.verb_groups)
     if node.op == "is" and context != "precondition":
         return ("style", names.styles)
     if node.op == "is" and slots.get(node.subject) == "verb":

@@ -25,7 +25,7 @@ def _pos(meta_or_tok):
 
 
 _PRED_OPS = {"has", "has_no", "has_only", "is_", "served_at", "served_in", "served_before", "made_in",
-             "cooked_in", "adds_before", "contains", "on", "within", "holds"}
+             "made_with", "topped_with", "made_by", "cooked_in", "adds_before", "contains", "on", "within", "holds"}
 
 
 @v_args(meta=True)
@@ -68,6 +68,9 @@ class _ToAst(Transformer):
 
     def uses(self, meta, c):
         return A.Pred(*_pos(meta), "uses", None, (c[0],))
+
+    def uses_in(self, meta, c):
+        return A.Pred(*_pos(c[0]), "uses", str(c[0]), (c[1],))
 
     def task_has(self, meta, c):
         return A.Pred(*_pos(meta), "task_has", None, (_name(c[0]),))

@@ -205,6 +205,22 @@ def _p_has(node: A.Pred, domain):
     return has
 
 
+def _p_made_with(node: A.Pred, domain):
+    # interim: the provenance split (made with / topped with) follows in the next commit
+    return _p_has(node, domain)
+
+
+def _p_topped_with(node: A.Pred, domain):
+    # interim: the provenance split (made with / topped with) follows in the next commit
+    return _p_has(node, domain)
+
+
+def _p_made_by(node: A.Pred, domain):
+    group = node.args[0].name
+    verbs = {v for g, vs in domain.verb_groups if g == group for v in vs}
+    return _every_dish(node, lambda ctx, d: any(n.verb in verbs for n in d.derived), f"made by {group}")
+
+
 def _p_has_no(node: A.Pred, domain):
     look = _presence(node)
 
@@ -371,6 +387,8 @@ def _substance_node(domain: CompiledDomain, sid: str) -> Node:
 
 def _p_uses(node: A.Pred, domain):
     f, text = entity_matcher(node.args[0]), render(node.args[0])
+    if node.subject is not None:
+        return _every_dish(node, lambda ctx, d: any(f(ctx.world, v) for v in d.vessels), f"uses {text}")
 
     def check(ctx, it):
         hits = sorted(e for e in ctx.world.used if f(ctx.world, e))
@@ -401,6 +419,7 @@ def _p_made(node: A.Pred, domain):
 
 _PREDS = {"has": _p_has, "has_no": _p_has_no, "has_only": _p_has_only, "count": _p_count, "is": _p_is,
           "served_at": _p_served_at, "served_in": _p_served_in, "made_in": _p_made_in,
+          "made_with": _p_made_with, "topped_with": _p_topped_with, "made_by": _p_made_by,
           "cooked_in": _p_cooked_in, "adds_before": _p_adds_before, "served_before": _p_served_before,
           "available": _p_available, "uses": _p_uses, "task_has": _p_task_has, "made": _p_made}
 
