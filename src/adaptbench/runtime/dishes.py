@@ -1,10 +1,25 @@
-"""Served dishes: what stands on a dining place at the end, with every ingredient traced back."""
+"""Served dishes as a person sees the table: what stands on a dining place at the end, every ingredient
+traced back with how it arrived (made into the dish or put on it afterwards), when the dish reached the
+table, and what is served alongside it (its sides).
+
+Vocabulary (docs/rules.md, *The table as a person sees it*):
+- a *piece* is one top-level thing in a dish's vessel: a poured/cooked content or an object placed in it;
+- a *maker* piece is the product of cooking or mixing (a result whose verb is not a cutting verb) or a
+  piece that was heated; the dish was *made* when its last maker arrived in the vessel;
+- *made with*: leaves under a maker, pieces heated in the vessel after they arrived, and (for a dish with
+  no maker: cereal, parfait) every piece; *topped with*: pieces that arrived after the dish was made (or,
+  with no maker, after its first piece) and were not heated with it;
+- water that only poached or boiled something (an input, with eggs, of a heated step) is a cooking
+  medium, not an ingredient (`medium`).
+"""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
 from .world import Node, World
+
+_EGGS = frozenset(("egg", "egg_substitute"))
 
 
 @dataclass
@@ -15,10 +30,15 @@ class Dish:
     container: str | None
     place: str
     served_step: int
-    leaves: list = field(default_factory=list)  # (node, heated_on_path, cut_on_path)
+    leaves: list = field(default_factory=list)  # (node, heated_on_path, cut_on_path): what it has
+    made: list = field(default_factory=list)  # leaves that went in while it was made
+    topped: list = field(default_factory=list)  # leaves put on it after it was made
+    placed: list = field(default_factory=list)  # leaves of objects placed on it after it was made (sides too)
+    medium: list = field(default_factory=list)  # cooking water: made with, but no ingredient
     derived: list = field(default_factory=list)  # result nodes in its history
     vessels: set = field(default_factory=set)
     completes: set = field(default_factory=set)
+    as_is: bool = False  # a condiment / milk container served as it is (only ever a side)
 
 
 def dining_place(world: World, eid: str) -> str | None:
@@ -29,14 +49,28 @@ def dining_place(world: World, eid: str) -> str | None:
     return None
 
 
+def _reached(world: World, eid: str, place: str) -> int:
+    """The step `eid` reached `place`: the last arrival of it or anything carrying it (a tray)."""
+    step = world.arrived.get(eid, 0)
+    for a in world.ancestors(eid):
+        if a == place:
+            break
+        step = max(step, world.arrived.get(a, 0))
+    return step
+
+
 def served_dishes(world: World) -> list:
-    """Every served dish, in a stable order."""
+    """Every served dish, in a stable order (as-is condiment containers are not among them)."""
+    return [d for d in table(world) if not d.as_is]
+
+
+def table(world: World) -> list:
+    """Every dish and every as-is container (ketchup bottle, milk jug) standing on a dining place."""
     dishes = []
     places = [e for e, s in world.specs.items() if "dining_place" in s.tags]
     on_places = sorted(d for p in places for d in world.descendants(p))
     for eid in on_places:
-        spec = world.specs[eid]
-        if spec.kind != "movable":
+        if world.specs[eid].kind != "movable":
             continue
         place = dining_place(world, eid)
         if eid in world.nodes:
@@ -46,24 +80,79 @@ def served_dishes(world: World) -> list:
         tops = list(world.contents.get(eid, ())) + [world.nodes[c] for c in world.children[eid] if c in world.nodes]
         if tops:
             dishes.append(_dish(world, eid, eid, place, tops))
+        elif world.sources.get(eid):
+            dishes.append(_as_is(world, eid, place))
     return dishes
 
 
-def _dish(world: World, key: str, container: str | None, place: str, tops: list) -> Dish:
-    step = max([world.arrived.get(key, 0)] + [t.arrived for t in tops])
-    dish = Dish(key, container, place, step)
-    for t in tops:
-        _visit(dish, t, False, False)
+def _as_is(world: World, eid: str, place: str) -> Dish:
+    dish = Dish(eid, eid, place, _reached(world, eid, place), as_is=True)
+    for sub in world.sources[eid]:
+        s = world.domain.substance[sub]
+        leaf = (Node(0, sub, s.category, frozenset(s.tags)), False, False)
+        dish.leaves.append(leaf)
+        dish.made.append(leaf)
     return dish
 
 
-def _visit(dish: Dish, node: Node, heated: bool, cut: bool) -> None:
+def _is_maker(world: World, node: Node) -> bool:
+    if node.heated:
+        return True
+    return bool(node.inputs) and node.verb != "chop" and world.domain.verbs.get(node.verb) != "cutting"
+
+
+def _dish(world: World, key: str, container: str | None, place: str, tops: list) -> Dish:
+    tops = sorted(tops, key=lambda t: (t.arrived, t.nid))
+    makers = [t for t in tops if _is_maker(world, t)]
+    base = makers[-1] if makers else tops[0]
+    dish = Dish(key, container, place, max(_reached(world, key, place), base.arrived))
+    for t in tops:
+        leaves = _leaves(dish, t)
+        heated_here = any(h >= t.arrived for h in t.heated)
+        if t in makers or heated_here or not makers:
+            dish.made.extend(leaves)
+        if t is not base and t.arrived > base.arrived and not heated_here and t not in makers:
+            dish.topped.extend(leaves)
+            if t.entity is not None:
+                dish.placed.extend(leaves)
+    return dish
+
+
+def _leaves(dish: Dish, top: Node) -> list:
+    out: list = []
+    _visit(dish, top, False, False, out)
+    return out
+
+
+def _visit(dish: Dish, node: Node, heated: bool, cut: bool, out: list) -> None:
     heated = heated or bool(node.heated)
     cut = cut or node.cut
     dish.vessels.update(node.vessels)
     if not node.inputs:
+        out.append((node, heated, cut))
         dish.leaves.append((node, heated, cut))
         return
     dish.derived.append(node)
+    medium = _cooking_water(node)
     for i in node.inputs:
-        _visit(dish, i, heated, cut)
+        if i in medium:
+            dish.medium.append((i, True, False))
+            out.append((i, True, False))
+            continue
+        _visit(dish, i, heated, cut, out)
+
+
+def _cooking_water(node: Node) -> tuple:
+    """Water that only poached or boiled eggs in this heated step (not water made into the food)."""
+    if not node.heated:
+        return ()
+    water = tuple(i for i in node.inputs if not i.inputs and i.category == "water")
+    if water and any(_has_egg(i) for i in node.inputs if i not in water):
+        return water
+    return ()
+
+
+def _has_egg(node: Node) -> bool:
+    if not node.inputs:
+        return node.category in _EGGS or not _EGGS.isdisjoint(node.tags)
+    return any(_has_egg(i) for i in node.inputs)

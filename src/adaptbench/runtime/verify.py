@@ -13,7 +13,7 @@ from functools import lru_cache
 from ..compiler import ast as A
 from ..compiler.model import CompiledDomain, Persona, Task
 from .classes import entity_matcher, node_matcher, render
-from .dishes import Dish, served_dishes
+from .dishes import Dish, table
 from .world import Node, World
 
 
@@ -82,8 +82,11 @@ class Ctx:
     def __init__(self, domain: CompiledDomain, world: World, task: Task):
         self.domain, self.world, self.task = domain, world, task
         self.task_components = set(task.components)
-        self.dishes = served_dishes(world)
+        self.table = table(world)
+        self.dishes = [d for d in self.table if not d.as_is]
+        self.meal_sides = True  # `sides` means every side at the meal's places (`for all`), else it's sides
         self._done: dict = {}  # (dish key, component) -> completes?
+        self._placed: dict = {}  # dish key -> the pieces placed on it, as a dish of their own
 
     def completes(self, dish: Dish, comps) -> bool:
         """Whether a dish completes any of the components (each checked once, on demand)."""
@@ -98,6 +101,24 @@ class Ctx:
                 return True
         return False
 
+    def sides(self, dishes: list | None) -> list:
+        """What is served alongside `dishes` (None: alongside the meal's dishes) at the same dining place:
+        other food in its own vessel, condiments or milk in their containers, pieces placed on the plate."""
+        if dishes is None:
+            dishes = [d for d in self.dishes if self.completes(d, self.task_components)] or self.dishes
+        places = {d.place for d in dishes}
+        keys = {d.key for d in dishes}
+        out = [d for d in self.table if d.place in places and d.key not in keys
+               and (d.as_is or not self.completes(d, self.task_components))]
+        return out + [self._placed_on(d) for d in dishes if d.placed]
+
+    def _placed_on(self, dish: Dish) -> Dish:
+        hit = self._placed.get(dish.key)
+        if hit is None:
+            hit = self._placed[dish.key] = Dish(f"{dish.key} (placed on it)", dish.container, dish.place,
+                                                dish.served_step, list(dish.placed))
+        return hit
+
     def expand(self, name: str) -> set:
         """Component ids a component or group name stands for."""
         return set(self.domain.groups.get(name, (name,)))
@@ -109,7 +130,7 @@ class Ctx:
         if name == "meal":
             return self.dishes
         if name == "sides":
-            return [d for d in self.dishes if not self.completes(d, self.task_components)]
+            return self.sides(None if self.meal_sides or not it else it)
         comps = self.expand(name) & self.task_components or self.expand(name)
         return [d for d in self.dishes if self.completes(d, comps)]
 
@@ -175,18 +196,19 @@ def _label(dishes: list, subject: str = "") -> str:
     return ", ".join(d.key for d in dishes) or (f"no {subject} dish" if subject else "no dish")
 
 
-def _matches(dishes: list, f):
-    return [(d, n) for d in dishes for n, h, c in d.leaves if f(n, h, c)]
+def _matches(dishes: list, f, part: str = "leaves"):
+    return [(d, n) for d in dishes for n, h, c in getattr(d, part) if f(n, h, c)]
 
 
-def _presence(node: A.Pred):
+def _presence(node: A.Pred, part: str = "leaves"):
     """`f(ctx, it) -> (hits, found, steps, absent)`: ingredients of the subject's dishes matching the
-    class, why (when found / when absent), and the steps they arrived at. Shared by has and has no."""
+    class, why (when found / when absent), and the steps they arrived at. Shared by has and has no
+    (`part` = "made" / "topped" for made with / topped with)."""
     f, text = node_matcher(node.args[0]), render(node.args[0])
 
     def look(ctx, it):
         dishes = ctx.subject(node.subject, it)
-        hits = _matches(dishes, f)
+        hits = _matches(dishes, f, part)
         if hits:
             d, n = hits[0]
             return hits, f"{d.key} has {n.name} ({text})", tuple(sorted({x.arrived for _, x in hits})), ""
@@ -196,8 +218,8 @@ def _presence(node: A.Pred):
     return look
 
 
-def _p_has(node: A.Pred, domain):
-    look = _presence(node)
+def _p_has(node: A.Pred, domain, part: str = "leaves"):
+    look = _presence(node, part)
 
     def has(ctx, it):
         hits, found, steps, absent = look(ctx, it)
@@ -206,13 +228,11 @@ def _p_has(node: A.Pred, domain):
 
 
 def _p_made_with(node: A.Pred, domain):
-    # interim: the provenance split (made with / topped with) follows in the next commit
-    return _p_has(node, domain)
+    return _p_has(node, domain, "made")
 
 
 def _p_topped_with(node: A.Pred, domain):
-    # interim: the provenance split (made with / topped with) follows in the next commit
-    return _p_has(node, domain)
+    return _p_has(node, domain, "topped")
 
 
 def _p_made_by(node: A.Pred, domain):
@@ -432,20 +452,48 @@ def verdict(ctx: Ctx, pref) -> Verdict:
     comps = [c for c in ctx.task.components if any(c in ctx.expand(t) for t in targets)]
     if not comps:
         return Verdict(pref.id, pref.text, "inapplicable", f"the task has no {' or '.join(targets)}")
-    if rule.scope is not None and rule.scope.cond is not None:
+    per_dish = _per_dish_cond(rule)
+    if rule.scope is not None and rule.scope.cond is not None and not per_dish:
         cond = compiled(ctx.domain, rule, "cond")(ctx, [])
         if not cond.ok:
             return Verdict(pref.id, pref.text, "inapplicable", cond.why)
-    f = compiled(ctx.domain, rule)
-    results = []
-    for c in comps:
-        dishes = [d for d in ctx.dishes if ctx.completes(d, (c,))]
-        results.append(f(ctx, dishes) if dishes else Outcome(False, f"{c} was not completed"))
+    ctx.meal_sides = "all" in targets
+    results, skipped = _results(ctx, rule, comps, per_dish)
+    if not results:
+        return Verdict(pref.id, pref.text, "inapplicable", skipped)
     progress = sum(r.closeness for r in results) / len(results)
     for r in results:
         if not r.ok:
             return Verdict(pref.id, pref.text, "violated", r.why, r.steps, progress)
     return Verdict(pref.id, pref.text, "satisfied", results[-1].why, results[-1].steps, 1.0)
+
+
+def _results(ctx: Ctx, rule: A.Rule, comps: list, per_dish: bool) -> tuple:
+    """Outcomes per target component; with a per-dish condition, only dishes where it holds count."""
+    f = compiled(ctx.domain, rule)
+    cond = compiled(ctx.domain, rule, "cond") if per_dish else None
+    results, skipped = [], ""
+    for c in comps:
+        dishes = [d for d in ctx.dishes if ctx.completes(d, (c,))]
+        if not dishes:
+            results.append(Outcome(False, f"{c} was not completed"))
+            continue
+        if cond is not None:
+            held = [d for d in dishes if cond(ctx, [d]).ok]
+            if not held:
+                skipped = cond(ctx, dishes).why
+                continue
+            dishes = held
+        results.append(f(ctx, dishes))
+    return results, skipped
+
+
+def _per_dish_cond(rule: A.Rule) -> bool:
+    """Whether the scope condition talks about the dish (`it`, `sides`): then it is checked per dish."""
+    cond = rule.scope.cond if rule.scope is not None else None
+    if cond is None:
+        return False
+    return any(isinstance(n, A.Pred) and n.subject in ("it", "sides") for n in A.walk(cond))
 
 
 def evaluate(domain: CompiledDomain, world: World, task: Task, persona: Persona | None) -> Evaluation:

@@ -1,0 +1,83 @@
+"""The table as a person sees it: preparation versus topping, sides, serving time, per-dish conditions.
+
+An examples registry in the spirit of unified-planning's `test/examples`: each case is a small trajectory,
+a rule, the verdict the paper's sentence implies, and why.
+"""
+
+from __future__ import annotations
+
+import pytest
+
+from .test_verify import FIND, judge
+
+FIND = FIND + ["Look for butter", "Look for avocado", "Look for tomato", "Look for ketchup", "Look for tray",
+               "Look for honey", "Look for tea", "Look for kettle", "Look for cup"]
+PAN = ["Move pan_1 to stove_0", "Move egg_0 to pan_1", "Move egg_1 to pan_1"]
+SCRAMBLE = ["Turn on stove_0", "scramble items in pan_1 to get scrambled_eggs",
+            "Move scrambled_eggs from pan_1 to plate_0"]
+MILK_IN = FIND + PAN + ["Pour whole_milk from milk_0 to pan_1"] + SCRAMBLE + ["Move plate_0 to table_1"]
+MILK_OVER = FIND + PAN + SCRAMBLE + ["Pour whole_milk from milk_0 to plate_0", "Move plate_0 to table_1"]
+CHEESE_ON = FIND + PAN + SCRAMBLE + ["Move cheddar_cheese from cheese_3 to plate_0", "Move plate_0 to table_1"]
+EGGS = FIND + PAN + SCRAMBLE + ["Move plate_0 to table_1"]
+AVOCADO_SIDE = EGGS + ["Move avocado_0 to plate_1", "Move plate_1 to table_1"]
+AVOCADO_ELSEWHERE = EGGS + ["Move avocado_0 to plate_1", "Move plate_1 to desk_0"]
+TEA = ["Pour water from sink_1 into kettle_0", "Turn on kettle_0", "Move chamomile_tea_bag from tea_bags_2 to cup_0",
+       "Pour water from kettle_0 into cup_0"]
+TOMATO_IN_TEA = FIND + TEA + ["Move tomato_0 to cup_0", "Move cup_0 to table_1"] + PAN + SCRAMBLE + [
+    "Move plate_0 to table_1"]
+KETCHUP_BESIDE = EGGS + ["Move ketchup_0 to table_1"]
+TEA_THEN_EGGS = FIND + TEA + ["Move cup_0 to table_1"] + PAN + SCRAMBLE + ["Move plate_0 to table_1"]
+TEA_REDATED = TEA_THEN_EGGS + ["Pour honey from honey_0 to cup_0"]
+TRAY = FIND + TEA + PAN + SCRAMBLE + ["Move tray_0 to counter_0", "Move cup_0 to tray_0", "Move plate_0 to tray_0",
+                                      "Move tray_0 to table_1"]
+CEREAL_DRY = FIND + ["Pour corn_flakes_cereal from cereal_box_5 to bowl_4", "Move bowl_4 to table_0"]
+CEREAL_OAT = FIND + ["Pour oat_milk from milk_1 to bowl_4", "Pour corn_flakes_cereal from cereal_box_5 to bowl_4",
+                     "Move bowl_4 to table_0"]
+
+CASES = [
+    # preparation versus topping
+    ("milk while preparing", MILK_IN, "for egg_dish: it made with whole_milk", "satisfied", "eggs"),
+    ("cold milk poured over is not milk while preparing", MILK_OVER, "for egg_dish: it made with milk",
+     "violated", "eggs"),
+    ("cold milk poured over is a topping", MILK_OVER, "for egg_dish: it topped with milk", "satisfied", "eggs"),
+    ("milk in the pan is no topping", MILK_IN, "for egg_dish: it topped with milk", "violated", "eggs"),
+    ("has is either", MILK_OVER, "for egg_dish: it has milk", "satisfied", "eggs"),
+    ("cheese on cooked eggs is topped", CHEESE_ON, "for egg_dish: it topped with cheese", "satisfied", "eggs"),
+    ("cheese on cooked eggs was not cooked with them", CHEESE_ON, "for egg_dish: it made with cheese", "violated",
+     "eggs"),
+    # sides
+    ("an avocado on its own plate at the same table is a side", AVOCADO_SIDE, "for egg_dish: sides has avocado",
+     "satisfied", "eggs"),
+    ("an avocado at another place is no side", AVOCADO_ELSEWHERE, "for egg_dish: sides has avocado", "violated",
+     "eggs"),
+    ("a ketchup bottle beside the eggs is a side", KETCHUP_BESIDE, "for egg_dish: sides has condiment",
+     "satisfied", "eggs"),
+    ("the eggs are not their own side", EGGS, "for egg_dish: sides has egg", "violated", "eggs"),
+    ("a tomato in the tea is not a vegetable with the eggs", TOMATO_IN_TEA,
+     "for egg_dish: it has vegetable or sides has vegetable", "violated", "tea_eggs"),
+    # serving time
+    ("tea first, then eggs", TEA_THEN_EGGS, "for all: beverage served before food", "satisfied", "tea_eggs"),
+    ("honey on a served tea does not re-date it", TEA_REDATED, "for all: beverage served before food",
+     "satisfied", "tea_eggs"),
+    ("carried together on a tray: neither is first", TRAY, "for all: beverage served before food", "violated",
+     "tea_eggs"),
+    ("carried together on a tray: neither is first (the other way)", TRAY, "for all: food served before beverage",
+     "violated", "tea_eggs"),
+    # conditions on the dish
+    ("no milk: a rule about the milk does not apply", CEREAL_DRY,
+     "for cereal if it has milk: it has no (milk & !lactose_free)", "inapplicable", "cereal"),
+    ("oat milk: the rule applies", CEREAL_OAT, "for cereal if it has milk: it has milk & plant_based", "satisfied",
+     "cereal"),
+    ("ordering without its subject is inapplicable", CEREAL_DRY,
+     "for cereal if it has milk: it adds milk before breakfast_cereal", "inapplicable", "cereal"),
+    ("ordering with its subject", CEREAL_OAT, "for cereal if it has milk: it adds milk before breakfast_cereal",
+     "satisfied", "cereal"),
+    ("an uncompleted target is still violated", FIND, "for cereal if it has milk: it has milk", "violated",
+     "cereal"),
+]
+
+
+@pytest.mark.parametrize("name,actions,rule,expected,task", CASES, ids=[c[0] for c in CASES])
+def test_table_semantics(domain, name, actions, rule, expected, task):
+    v = judge(domain, actions, rule, task=task)
+    assert v.verdict == expected, f"{name}: {v.verdict} ({v.reason})"
