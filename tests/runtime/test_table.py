@@ -81,3 +81,58 @@ CASES = [
 def test_table_semantics(domain, name, actions, rule, expected, task):
     v = judge(domain, actions, rule, task=task)
     assert v.verdict == expected, f"{name}: {v.verdict} ({v.reason})"
+
+
+# ---- styles by process, never by name
+def _eggs(*steps, pan="pan_1", extra=()):
+    return FIND + ["Look for oil", "Move pan_1 to stove_0", "Move egg_0 to pan_1", "Move egg_1 to pan_1", *extra,
+                   *steps, "Move plate_0 to table_1"]
+
+
+FRIED_NAMED_POACHED = _eggs("Turn on stove_0", "fry items in pan_1 to get poached_eggs",
+                            "Move poached_eggs from pan_1 to plate_0")
+MIXED_NAMED_OMELETTE = FIND + ["Move egg_0 to bowl_4", "Mix all items in bowl_4 to get omelette", "Move bowl_4 to table_1"]
+BEATEN_COOKED = _eggs("whisk items in pan_1 to get beaten", "Turn on stove_0", "Cook items in pan_1 to get eggs",
+                      "Move eggs from pan_1 to plate_0")
+BEATEN_SCRAMBLED = _eggs("whisk items in pan_1 to get beaten", "Turn on stove_0",
+                         "scramble items in pan_1 to get omelette", "Move omelette from pan_1 to plate_0")
+POACHED = _eggs("Pour water from sink_1 into pan_1", "Pour salt from salt_box_0 to pan_1", "Turn on stove_0",
+                "Cook items in pan_1 to get eggs", "Move eggs from pan_1 to plate_0")
+FLIPPED = _eggs("Turn on stove_0", "fry items in pan_1 to get eggs", "flip items in pan_1 to get eggs",
+                "Move eggs from pan_1 to plate_0")
+UNFLIPPED = _eggs("Turn on stove_0", "fry items in pan_1 to get over_easy_eggs",
+                  "Move over_easy_eggs from pan_1 to plate_0")
+HOT_COFFEE = FIND + ["Look for kettle", "Pour water from sink_1 into kettle_0", "Turn on kettle_0",
+                     "Pour coffee_grounds from coffee_0 to mug_0", "Pour water from kettle_0 into mug_0"]
+CHILLED_COFFEE = HOT_COFFEE + ["chill items in mug_0 to get hot_coffee", "Move mug_0 to table_0"]
+
+STYLE_CASES = [
+    ("fried eggs named poached are not poached", FRIED_NAMED_POACHED, "for egg_dish: it is poached", "violated"),
+    ("fried eggs named poached are fried", FRIED_NAMED_POACHED, "for egg_dish: it is fried", "satisfied"),
+    ("mixing in a bowl makes no omelette", MIXED_NAMED_OMELETTE, "for eggs: it is omelette", "violated"),
+    ("beaten then cooked unstirred is an omelette", BEATEN_COOKED, "for egg_dish: it is omelette", "satisfied"),
+    ("beaten then cooked unstirred is not scrambled", BEATEN_COOKED, "for egg_dish: it is scrambled", "violated"),
+    ("beaten then scrambled is scrambled, whatever its name", BEATEN_SCRAMBLED, "for egg_dish: it is scrambled",
+     "satisfied"),
+    ("beaten then scrambled is no omelette", BEATEN_SCRAMBLED, "for egg_dish: it is omelette", "violated"),
+    ("cooked in water is poached", POACHED, "for egg_dish: it is poached", "satisfied"),
+    ("poaching water is no ingredient", POACHED, "for egg_dish: it has only (egg | salt)", "satisfied"),
+    ("poaching water is no ingredient (has no)", POACHED, "for egg_dish: it has no water", "satisfied"),
+    ("fried and flipped is over easy", FLIPPED, "for egg_dish: it is over_easy", "satisfied"),
+    ("fried and flipped is not sunny-side up", FLIPPED, "for egg_dish: it is sunny_side_up", "violated"),
+    ("fried unflipped is not over easy, whatever its name", UNFLIPPED, "for egg_dish: it is over_easy", "violated"),
+    ("fried unflipped is sunny-side up", UNFLIPPED, "for egg_dish: it is sunny_side_up", "satisfied"),
+    ("beating is a verb group", BEATEN_COOKED, "for egg_dish: it made by beating", "satisfied"),
+]
+
+
+@pytest.mark.parametrize("name,actions,rule,expected", STYLE_CASES, ids=[c[0] for c in STYLE_CASES])
+def test_styles_by_process(domain, name, actions, rule, expected):
+    v = judge(domain, actions, rule, task="eggs")
+    assert v.verdict == expected, f"{name}: {v.verdict} ({v.reason})"
+
+
+@pytest.mark.parametrize("actions,expected", [(HOT_COFFEE + ["Move mug_0 to table_0"], "satisfied"),
+                                              (CHILLED_COFFEE, "violated")])
+def test_hot_means_served_while_heated(domain, actions, expected):
+    assert judge(domain, actions, "for coffee: it is hot", task="toast_coffee").verdict == expected

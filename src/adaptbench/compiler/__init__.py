@@ -87,6 +87,7 @@ def _freeze(draft: Draft, digest: str) -> CompiledDomain:
         personas=tuple(sorted(_unique(draft.personas), key=lambda p: (p.number, p.id))),
         recipes=_unique(draft.recipes),
         planning=tuple(draft.planning),
+        processes=tuple((g, tuple(vs)) for g, vs in draft.processes.items()),
     )
 
 

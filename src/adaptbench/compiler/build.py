@@ -36,6 +36,7 @@ class Draft:
     tags: dict = field(default_factory=dict)
     categories: dict = field(default_factory=dict)
     verb_groups: dict = field(default_factory=dict)
+    processes: dict = field(default_factory=dict)
     actions: list = field(default_factory=list)
     components: list = field(default_factory=list)
     styles: list = field(default_factory=list)
@@ -145,6 +146,9 @@ def add_actions(draft: Draft, doc: LoadedDoc) -> None:
         draft.verb_groups.setdefault(group, []).extend(verbs)
         for j, v in enumerate(verbs):
             draft.where.setdefault(("verb", v), draft.at(doc, ("verbs", group, j)))
+    for group, verbs in doc.data.get("processes", {}).items():
+        draft.processes.setdefault(group, []).extend(verbs)
+        draft.where.setdefault(("process", group), draft.at(doc, ("processes", group)))
 
 
 def add_tasks(draft: Draft, doc: LoadedDoc) -> None:
@@ -163,7 +167,9 @@ def add_tasks(draft: Draft, doc: LoadedDoc) -> None:
         draft.claim("component", c["id"], draft.at(doc, ("components", i, "id")))
     for i, s in enumerate(data.get("styles", [])):
         rule = rule_at(draft, doc, ("styles", i, "rule"), s["rule"]) if "rule" in s else None
-        draft.styles.append(Style(s["id"], s["text"], tuple(s.get("words", ())), tuple(s.get("verbs", ())), rule))
+        process = tuple(tuple(sorted(alt.items())) for alt in s.get("process", ()))
+        draft.styles.append(Style(s["id"], s["text"], tuple(s.get("words", ())), tuple(s.get("verbs", ())), rule,
+                                  process))
         draft.claim("style", s["id"], draft.at(doc, ("styles", i, "id")))
     add_recipes(draft, doc)
 

@@ -47,7 +47,7 @@ class Names:
         self.components = {c.id for c in draft.components}
         self.groups = {"all", "food", "sweet", "savory", "beverage"} | {g for c in draft.components for g in c.groups}
         self.styles = {s.id for s in draft.styles}
-        self.verb_groups = set(draft.verb_groups)
+        self.verb_groups = set(draft.verb_groups) | set(draft.processes)
 
 
 def check_all(draft: Draft) -> None:
@@ -152,7 +152,13 @@ def _check_effects(draft: Draft, a, slots: dict) -> None:
 
 
 def check_verbs(draft: Draft) -> None:
-    """A verb belongs to one group only."""
+    """A verb belongs to one group only; process groups name declared verbs (or the fixed mix/cook/chop)."""
+    declared = {v for vs in draft.verb_groups.values() for v in vs} | {"mix", "cook", "chop"}
+    for group, verbs in draft.processes.items():
+        for v in verbs:
+            if v not in declared:
+                draft.error(draft.where[("process", group)], "D204",
+                            f"process group '{group}' names undeclared verb '{v}'{did_you_mean(v, declared)}")
     seen: dict = {}
     for group, verbs in draft.verb_groups.items():
         for v in verbs:
@@ -175,11 +181,29 @@ def check_tasks(draft: Draft, names: Names) -> None:
             if r not in names.classes:
                 draft.error(draft.where[("component", c.id)], "D104",
                             f"unknown class '{r}' in requires{did_you_mean(r, names.classes)}")
+    _check_styles(draft, names)
+
+
+def _check_styles(draft: Draft, names: Names) -> None:
     for s in draft.styles:
         if s.rule is not None:
             _check_rule(draft, s.rule, "dish", names)
-        elif not (s.words or s.verbs):
-            draft.error(draft.where[("style", s.id)], "D110", f"style '{s.id}' needs words, verbs or a rule")
+        elif not (s.words or s.verbs or s.process):
+            draft.error(draft.where[("style", s.id)], "D110", f"style '{s.id}' needs a process or a rule")
+        for alt in s.process:
+            _check_process(draft, s.id, dict(alt), names)
+
+
+def _check_process(draft: Draft, style: str, alt: dict, names: Names) -> None:
+    pools = {"food": ("class", names.classes), "with": ("class", names.classes)}
+    for key in ("before_heat", "not_before_heat", "while_hot", "not_while_hot"):
+        pools[key] = ("verb group", names.verb_groups)
+    for key, (what, known) in pools.items():
+        for name in alt.get(key, "").split("|"):
+            name = name.strip()
+            if key in alt and name not in known:
+                draft.error(draft.where[("style", style)], "D104", f"unknown {what} '{name}' in process of style "
+                            f"'{style}'{did_you_mean(name, known)}")
 
 
 def check_personas(draft: Draft, names: Names) -> None:

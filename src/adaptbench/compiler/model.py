@@ -104,6 +104,7 @@ class Style:
     words: tuple
     verbs: tuple
     rule: A.Rule | None
+    process: tuple = ()  # alternatives, each ((key, value), ...): see spec/tasks/styles.yaml
 
 
 @dataclass(frozen=True)
@@ -206,6 +207,15 @@ class CompiledDomain:
     personas: tuple
     recipes: tuple = ()
     planning: tuple = ()
+    processes: tuple = ()  # ((group, (verbs...)), ...): overlapping verb groups the styles test
+
+    @cached_property
+    def process(self) -> dict:
+        """Verb group or process group -> its verbs (what `made by` and style processes test)."""
+        out = {g: frozenset(vs) for g, vs in self.verb_groups}
+        for g, vs in self.processes:
+            out[g] = out.get(g, frozenset()) | frozenset(vs)
+        return out
 
     @cached_property
     def entity(self) -> dict:

@@ -36,6 +36,7 @@ class Dish:
     placed: list = field(default_factory=list)  # leaves of objects placed on it after it was made (sides too)
     medium: list = field(default_factory=list)  # cooking water: made with, but no ingredient
     derived: list = field(default_factory=list)  # result nodes in its history
+    tops: list = field(default_factory=list)  # its pieces (what the styles follow down)
     vessels: set = field(default_factory=set)
     completes: set = field(default_factory=set)
     as_is: bool = False  # a condiment / milk container served as it is (only ever a side)
@@ -105,7 +106,7 @@ def _dish(world: World, key: str, container: str | None, place: str, tops: list)
     tops = sorted(tops, key=lambda t: (t.arrived, t.nid))
     makers = [t for t in tops if _is_maker(world, t)]
     base = makers[-1] if makers else tops[0]
-    dish = Dish(key, container, place, max(_reached(world, key, place), base.arrived))
+    dish = Dish(key, container, place, max(_reached(world, key, place), base.arrived), tops=tops)
     for t in tops:
         leaves = _leaves(dish, t)
         heated_here = any(h >= t.arrived for h in t.heated)

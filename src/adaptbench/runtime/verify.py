@@ -14,6 +14,7 @@ from ..compiler import ast as A
 from ..compiler.model import CompiledDomain, Persona, Task
 from .classes import entity_matcher, node_matcher, render
 from .dishes import Dish, table
+from .styles import process_ok
 from .world import Node, World
 
 
@@ -237,7 +238,7 @@ def _p_topped_with(node: A.Pred, domain):
 
 def _p_made_by(node: A.Pred, domain):
     group = node.args[0].name
-    verbs = {v for g, vs in domain.verb_groups if g == group for v in vs}
+    verbs = domain.process.get(group, frozenset())
     return _every_dish(node, lambda ctx, d: any(n.verb in verbs for n in d.derived), f"made by {group}")
 
 
@@ -281,13 +282,12 @@ def _p_count(node: A.Pred, domain):
 
 
 def _style_ok(ctx: Ctx, dish: Dish, style) -> bool:
-    if style.rule is not None:
-        return compiled(ctx.domain, style.rule)(ctx, [dish]).ok
-    for n in dish.derived:
-        name = n.name.lower()
-        if any(w in name for w in style.words) or n.verb in style.verbs:
-            return True
-    return False
+    """A style holds by its rule and its process (spec/tasks/styles.yaml), never by a name."""
+    if style.rule is not None and not compiled(ctx.domain, style.rule)(ctx, [dish]).ok:
+        return False
+    if style.process:
+        return process_ok(ctx.domain, dish.tops, style.process)
+    return style.rule is not None
 
 
 def _p_is(node: A.Pred, domain):

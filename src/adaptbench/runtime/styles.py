@@ -1,0 +1,79 @@
+"""Styles decided by process (spec/tasks/styles.yaml): which verbs touched an ingredient before and after it
+was first heated, whether water cooked it, what it was combined with. The `to get` name never counts.
+
+A *path* is the chain of provenance nodes from one ingredient (a leaf) up to the top of the dish.
+"""
+
+from __future__ import annotations
+
+from .world import Node
+
+
+def _split(value: str) -> tuple:
+    return tuple(v.strip() for v in value.split("|"))
+
+
+def _matches(node: Node, names: tuple) -> bool:
+    return any(n == node.category or n in node.tags or n == node.name for n in names)
+
+
+def _paths(node: Node, trail: tuple = ()):
+    """Every leaf-to-top chain under `node` (the top last)."""
+    trail = (node,) + trail
+    if not node.inputs:
+        yield trail
+        return
+    for i in node.inputs:
+        yield from _paths(i, trail)
+
+
+def _first_heat(path: tuple) -> int | None:
+    steps = [s for n in path for s in n.heated]
+    return min(steps) if steps else None
+
+
+def _verbs(domain, groups: str) -> frozenset:
+    out: frozenset = frozenset()
+    for g in _split(groups):
+        out = out | domain.process.get(g, frozenset())
+    return out
+
+
+def _applied(path: tuple, verbs: frozenset, heat: int, after: bool) -> bool:
+    """Whether a step on the path used one of `verbs` after (or before) the first heat."""
+    return any(n.verb in verbs and (n.created >= heat if after else n.created < heat) for n in path[1:])
+
+
+def _in_water(path: tuple) -> bool:
+    return any(n.heated and any(not i.inputs and i.category == "water" for i in n.inputs) for n in path[1:])
+
+
+def _with(path: tuple, names: tuple) -> bool:
+    leaf = path[0]
+    return any(p[0] is not leaf and _matches(p[0], names) for n in path[1:] for p in _paths(n))
+
+
+def _path_ok(domain, path: tuple, alt: dict) -> bool:
+    if "food" in alt and not _matches(path[0], _split(alt["food"])):
+        return False
+    heat = _first_heat(path)
+    if heat is None:
+        return False
+    medium = alt.get("medium")
+    if medium is not None and _in_water(path) != (medium == "water"):
+        return False
+    for key, after, want in (("before_heat", False, True), ("not_before_heat", False, False),
+                             ("while_hot", True, True), ("not_while_hot", True, False)):
+        if key in alt and _applied(path, _verbs(domain, alt[key]), heat, after) != want:
+            return False
+    return "with" not in alt or _with(path, _split(alt["with"]))
+
+
+def process_ok(domain, tops: list, process: tuple) -> bool:
+    """Whether some ingredient of the dish (reached from its `tops`) was made by one process alternative."""
+    alts = [dict(a) for a in process]
+    for top in tops:
+        for path in _paths(top):
+            if any(_path_ok(domain, path, alt) for alt in alts):
+                return True
+    return False
