@@ -136,3 +136,26 @@ def test_styles_by_process(domain, name, actions, rule, expected):
                                               (CHILLED_COFFEE, "violated")])
 def test_hot_means_served_while_heated(domain, actions, expected):
     assert judge(domain, actions, "for coffee: it is hot", task="toast_coffee").verdict == expected
+
+
+# ---- uses: took part
+SPATULA_IN_PAN = FIND + ["Look for spatula", "Move pan_1 to stove_0", "Move spatula_1 to pan_1", "Move egg_0 to pan_1",
+                         "Turn on stove_0", "scramble items in pan_1 to get eggs", "Move eggs from pan_1 to plate_0",
+                         "Move plate_0 to table_1"]
+SPATULA_MOVED = FIND + ["Look for spatula", "Move spatula_1 to counter_0", "Move pan_1 to stove_0",
+                        "Move egg_0 to pan_1", "Turn on stove_0", "scramble items in pan_1 to get eggs",
+                        "Move eggs from pan_1 to plate_0", "Move plate_0 to table_1"]
+SPATULA_AFTER = FIND + ["Look for spatula", "Move pan_1 to stove_0", "Move egg_0 to pan_1", "Turn on stove_0",
+                        "scramble items in pan_1 to get eggs", "Move eggs from pan_1 to plate_0",
+                        "Move spatula_1 to pan_1", "Move plate_0 to table_1"]
+
+
+@pytest.mark.parametrize("actions,rule,expected", [
+    (SPATULA_IN_PAN, "for egg_dish: uses spatula", "satisfied"),
+    (SPATULA_IN_PAN, "for egg_dish: it uses spatula", "satisfied"),
+    (SPATULA_MOVED, "for egg_dish: uses spatula", "violated"),
+    (SPATULA_AFTER, "for egg_dish: uses spatula", "violated"),
+    (SPATULA_MOVED, "for egg_dish: uses stove", "satisfied"),
+])
+def test_uses_means_took_part(domain, actions, rule, expected):
+    assert judge(domain, actions, rule).verdict == expected

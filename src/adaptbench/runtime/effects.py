@@ -171,9 +171,20 @@ def set_state(world: World, params: dict, b: dict, ctx) -> None:
         states.discard("on")
 
 
+def took_part(world: World, node, vessels) -> None:
+    """The vessels a node was heated or made in, and the utensils standing in them then, took part."""
+    vessels = list(vessels)
+    tools = [c for v in vessels[:1] if v in world.specs and world.specs[v].kind == "movable"
+             for c in world.children.get(v, ()) if c not in world.nodes and world.specs[c].kind == "movable"]
+    node.vessels.update(vessels)
+    node.vessels.update(tools)
+    world.used.update(vessels)
+    world.used.update(tools)
+
+
 def _heat_node(world: World, node, vessels) -> None:
     node.heated.append(world.step)
-    node.vessels.update(vessels)
+    took_part(world, node, vessels)
 
 
 def _heat_entity(world: World, eid: str) -> None:
@@ -244,7 +255,7 @@ def combine(world: World, params: dict, b: dict, ctx) -> None:
     if not inputs:
         raise ActionFailed(f"{container} holds nothing to {verb} (endless supplies must be poured out first)")
     node = world.new_node(result, None, frozenset(("edible", "food")), tuple(inputs), verb)
-    node.vessels.update([container, *world.ancestors(container)])
+    took_part(world, node, [container, *world.ancestors(container)])
     node.arrived = min(n.arrived for n in inputs)
     world.contents[container] = [node]
     world.known_contents.add(result)
@@ -285,7 +296,7 @@ def _mark(world: World, node, params: dict, verb: str, where: str) -> None:
         node.cut = True
     if _applies(world, params.get("heat"), verb):
         _heat_node(world, node, [where, *world.ancestors(where)])
-    node.vessels.update([where, *world.ancestors(where)])
+    took_part(world, node, [where, *world.ancestors(where)])
 
 
 def ask(world: World, params: dict, b: dict, ctx) -> str:

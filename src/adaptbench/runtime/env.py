@@ -6,7 +6,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 from ..compiler.model import CompiledDomain
-from .actions import ActionFailed, Ref, bind, compile_check, compile_templates, match, resolve_holders
+from .actions import ActionFailed, bind, compile_check, compile_templates, match, resolve_holders
 from .effects import PRIMITIVES
 from .observe import layout
 from .scene import sample_scene
@@ -98,9 +98,6 @@ class Env:
         for eff in action.effects:
             out = PRIMITIVES[eff.primitive](w, dict(eff.params), b, ctx)
             obs = out if out is not None else obs
-        for v in b.values():
-            if isinstance(v, Ref) and v.kind == "entity":
-                w.used.add(v.value)
         args = {k: str(v) for k, v in b.items()}
         return action.id, args, obs if obs is not None else _fill(action.success, b)
 
