@@ -99,3 +99,17 @@ def test_sampled_strings_are_understood_by_the_runtime(domain, index, templates,
         probe.reset()
         r = probe.step(text)
         assert not r.observation.startswith("I don't understand"), (text, r.observation)
+
+
+def test_the_syntax_grammar_reads_every_string_one_way(index, states):
+    """No string of the corpus has two parses (lark Earley with explicit ambiguity)."""
+    from lark import Lark, Tree
+
+    text = StateGrammar(build_base(index, "syntax"), Observed(frozenset(), frozenset())).text
+    parser = Lark(text, parser="earley", lexer="dynamic", ambiguity="explicit")
+    rng = random.Random(1)
+    corpus = {a for _, _, _, actions in states for a in actions}
+    corpus |= {sample(index, states[-1][2], rng, "syntax")[0] for _ in range(400)}
+    for s in sorted(corpus):
+        tree = parser.parse(s)
+        assert not any(isinstance(t, Tree) and t.data == "_ambig" for t in tree.iter_subtrees()), s
