@@ -55,3 +55,27 @@ def test_lark_and_llguidance_agree(index, observed, lltok, level, variant):
     assert len(valid) >= 300 and all(ll.accepts(s) for s in valid)
     rejected = [s for s in invalid if not ll.accepts(s)]
     assert len(rejected) >= 200, f"only {len(rejected)} of {len(invalid)} broken strings are rejected"
+
+
+@pytest.mark.parametrize("contents", [True, False])
+def test_every_level_and_variant_compiles_cleanly_in_llguidance(index, lltok, contents):
+    """No errors and no warnings, including the typed level with no content observed yet."""
+    import llguidance
+
+    from adaptbench.grammars import LEVELS, VARIANTS, Observed
+
+    obs = Observed(frozenset(index.layout), frozenset(index.layout_contents) if contents else frozenset())
+    for level in LEVELS:
+        for variant in VARIANTS:
+            grammar = llguidance.LLMatcher.grammar_from_lark(StateGrammar(build_base(index, level, variant), obs).text)
+            assert llguidance.LLMatcher.validate_grammar_with_warnings(grammar, lltok) == (False, []), (level, variant)
+
+
+def test_typed_level_without_contents_drops_pour(index):
+    from adaptbench.grammars import Observed
+
+    text = StateGrammar(build_base(index, "typed"), Observed(frozenset(index.layout), frozenset())).text
+    parser = lark_parser(text)
+    assert "pour" not in text.split("\n")[3] and "CONTENT" not in text
+    assert parse(parser, index, "Move pan_9 to table_0") is None
+    assert parse(parser, index, "Search table_0").action == "search"

@@ -134,10 +134,8 @@ def build_base(index: GrammarIndex, level: str = "observed", variant: str = "def
     return Base(header, rules, {a.id: a.kinds for a in actions}, "\n".join(static), level, variant)
 
 
-def action_rule(base: Base, terminals: dict) -> str:
-    """The `action` rule: every wanted action whose slots can be filled in this state."""
-    missing = set()
-    if base.level == "typed" and "CONTENT" not in terminals:
-        missing.add("content")
-    ids = [a for a in base.rules if not (set(base.kinds[a]) & missing)]
-    return "action: " + " | ".join(ids)
+def usable_actions(base: Base, terminals) -> list:
+    """The wanted actions whose slots can be filled in this state (at the typed level an action with a
+    content slot is left out, rule and all, until some content has been observed)."""
+    missing = {"content"} if base.level == "typed" and "CONTENT" not in terminals else set()
+    return [a for a in base.rules if not (set(base.kinds[a]) & missing)]

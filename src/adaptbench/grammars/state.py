@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import bisect
 
-from .emit import Base, Observed, action_rule, build_base, quote
+from .emit import Base, Observed, build_base, quote, usable_actions
 from .index import GrammarIndex
 
 
@@ -108,7 +108,8 @@ class StateGrammar:
         static = b.static
         if b.level == "typed" and "CONTENT" not in self._terminals:
             static = static.replace("?thing: ENTITY | CONTENT", "?thing: ENTITY")
-        parts = [b.header, "start: action", action_rule(b, self._terminals), *b.rules.values(), static]
+        ids = usable_actions(b, self._terminals)
+        parts = [b.header, "start: action", "action: " + " | ".join(ids), *(b.rules[a] for a in ids), static]
         return "\n".join(p for p in parts if p) + "\n"
 
     def update(self, observed: Observed) -> str:
