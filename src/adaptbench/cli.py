@@ -81,10 +81,11 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     _add_validate(sub)
     _add_schema(sub)
-    from . import cli_episode, cli_runs
+    from . import cli_episode, cli_grammar, cli_runs
 
     cli_episode.add_commands(sub)
     cli_runs.add_commands(sub)
+    cli_grammar.add_commands(sub)
     return parser
 
 

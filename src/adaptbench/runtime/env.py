@@ -101,6 +101,13 @@ class Env:
         args = {k: str(v) for k, v in b.items()}
         return action.id, args, obs if obs is not None else _fill(action.success, b)
 
+    def observed(self):
+        """What the agent has seen so far (a read-only snapshot): the entity ids it may name (layout,
+        objects found, results made) and the content names it has seen."""
+        from ..grammars.emit import Observed
+
+        return Observed(frozenset(self.world.known), frozenset(self.world.known_contents))
+
     def evaluate(self):
         """Verdicts for the persona's preferences on the episode so far."""
         from .verify import evaluate
