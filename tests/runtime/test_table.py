@@ -159,3 +159,23 @@ SPATULA_AFTER = FIND + ["Look for spatula", "Move pan_1 to stove_0", "Move egg_0
 ])
 def test_uses_means_took_part(domain, actions, rule, expected):
     assert judge(domain, actions, rule).verdict == expected
+
+
+# ---- sweet or savory per dish
+TOAST = FIND + ["Look for bread", "Look for toaster", "Look for jam", "Move white_bread_slice from bread_0 to toaster_0",
+                "Turn on toaster_0", "Move white_bread_slice from toaster_0 to plate_1"]
+JAM_TOAST = TOAST + ["Move mixed_fruit_jam from jam_0 to plate_1", "Move plate_1 to table_1"]
+AVOCADO_TOAST = TOAST + ["Move avocado_0 to plate_1", "Move plate_1 to table_1"]
+
+
+@pytest.mark.parametrize("actions,rule,expected", [
+    (JAM_TOAST, "for sweet: it has sweet_spread", "satisfied"),
+    (JAM_TOAST, "for savory: sides has vegetable", "inapplicable"),
+    (AVOCADO_TOAST, "for savory: it has avocado", "satisfied"),
+    (AVOCADO_TOAST, "for sweet: it has sweet_spread", "inapplicable"),
+    (JAM_TOAST, "for toast: it has sweet_spread", "satisfied"),
+    (FIND, "for savory: it has avocado", "violated"),  # toast not made: its own kind (savory) applies
+    (FIND, "for sweet: it has sweet_spread", "inapplicable"),
+])
+def test_sweet_or_savory_per_dish(domain, actions, rule, expected):
+    assert judge(domain, actions, rule, task="toast_coffee").verdict == expected

@@ -161,9 +161,11 @@ def add_tasks(draft: Draft, doc: LoadedDoc) -> None:
             draft.where[("task", t["id"], "components", j)] = draft.at(doc, ("tasks", i, "components", j))
     for i, c in enumerate(data.get("components", [])):
         rule = rule_at(draft, doc, ("components", i, "completion"), c["completion"])
+        alt = c.get("kind_if")
+        when = rule_at(draft, doc, ("components", i, "kind_if", "when"), alt["when"]) if alt else None
         if rule is not None:
             draft.components.append(Component(c["id"], c["text"], c["kind"], tuple(c.get("groups", ())), rule,
-                                              tuple(c.get("requires", ()))))
+                                              tuple(c.get("requires", ())), alt["kind"] if alt else None, when))
         draft.claim("component", c["id"], draft.at(doc, ("components", i, "id")))
     for i, s in enumerate(data.get("styles", [])):
         rule = rule_at(draft, doc, ("styles", i, "rule"), s["rule"]) if "rule" in s else None

@@ -177,6 +177,8 @@ def check_tasks(draft: Draft, names: Names) -> None:
                             f"unknown component '{c}'{did_you_mean(c, names.components)}")
     for c in draft.components:
         _check_rule(draft, c.completion, "dish", names)
+        if c.alt_when is not None:
+            _check_rule(draft, c.alt_when, "dish", names)
         for r in c.requires:
             if r not in names.classes:
                 draft.error(draft.where[("component", c.id)], "D104",

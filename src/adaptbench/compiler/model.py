@@ -93,6 +93,8 @@ class Component:
     groups: tuple
     completion: A.Rule
     requires: tuple = ()  # classes every scene keeps at least one of
+    alt_kind: str | None = None  # the kind a dish has instead when `alt_when` holds for it (jam toast: sweet)
+    alt_when: A.Rule | None = None
 
 
 @dataclass(frozen=True)
@@ -269,6 +271,8 @@ class CompiledDomain:
         for c in self.components:
             out["all"].append(c.id)
             out.setdefault(c.kind, []).append(c.id)
+            if c.alt_kind:
+                out.setdefault(c.alt_kind, []).append(c.id)
             if c.kind != "beverage":
                 out["food"].append(c.id)
             for g in c.groups:

@@ -133,10 +133,25 @@ class Ctx:
         if name == "sides":
             return self.sides(None if self.meal_sides or not it else it)
         comps = self.expand(name) & self.task_components or self.expand(name)
-        return [d for d in self.dishes if self.completes(d, comps)]
+        return [d for d in self.dishes if any(self.completes(d, (c,)) and self.kind_ok(d, c, (name,)) for c in comps)]
+
+    def kind(self, dish: Dish, comp: str) -> str:
+        """The kind (sweet, savory, beverage) of a dish of `comp`: toast with jam is sweet."""
+        c = self.domain.component[comp]
+        if c.alt_when is not None and compiled(self.domain, c.alt_when)(self, [dish]).ok:
+            return c.alt_kind
+        return c.kind
+
+    def kind_ok(self, dish: Dish, comp: str, targets) -> bool:
+        """Whether a dish of `comp` is among `targets` (a kind target asks the dish's own kind)."""
+        c = self.domain.component[comp]
+        if c.alt_kind is None or any(comp in self.expand(t) for t in targets if t not in _KINDS):
+            return True
+        return self.kind(dish, comp) in targets
 
 
 _COMPILED: dict = {}
+_KINDS = frozenset(("sweet", "savory"))
 
 
 def compiled(domain: CompiledDomain, rule: A.Rule, part: str = "expr"):
@@ -473,10 +488,16 @@ def _results(ctx: Ctx, rule: A.Rule, comps: list, per_dish: bool) -> tuple:
     f = compiled(ctx.domain, rule)
     cond = compiled(ctx.domain, rule, "cond") if per_dish else None
     results, skipped = [], ""
+    targets = rule.scope.targets if rule.scope else ("all",)
     for c in comps:
         dishes = [d for d in ctx.dishes if ctx.completes(d, (c,))]
         if not dishes:
-            results.append(Outcome(False, f"{c} was not completed"))
+            if ctx.domain.component[c].kind in targets or not set(targets) <= _KINDS:
+                results.append(Outcome(False, f"{c} was not completed"))
+            continue
+        dishes = [d for d in dishes if ctx.kind_ok(d, c, targets)]
+        if not dishes:
+            skipped = f"the {c} served is not {' or '.join(targets)}"
             continue
         if cond is not None:
             held = [d for d in dishes if cond(ctx, [d]).ok]
