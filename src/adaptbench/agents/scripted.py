@@ -153,7 +153,7 @@ class Oracle:
         self._scores: dict = {}
 
     def score(self, assignment: dict) -> float:
-        """satisfied - violated (+ half the progress of violated ones) of a plan, simulated."""
+        """satisfied - 2 x violated (+ half the progress of violated ones) of a plan, simulated."""
         env = Env(self.domain, task=self.task.id, persona=self.persona, seed=self.seed, full_scene=self.full)
         env.reset()
         execute(env, assignment)
@@ -162,7 +162,9 @@ class Oracle:
         if trace not in self._scores:  # different choices often end in the same actions
             ev = env.evaluate()
             near = sum(v.progress for v in ev.verdicts if v.verdict == "violated")
-            self._scores[trace] = ev.satisfied - ev.violated + 0.5 * near
+            # a violation costs more than a satisfied preference gains: adding honey to satisfy a sweet-only
+            # rule must not pay for breaking "butter only on toast" (toast with honey is sweet)
+            self._scores[trace] = ev.satisfied - 2 * ev.violated + 0.5 * near
         return self._scores[trace]
 
     def search(self) -> dict:

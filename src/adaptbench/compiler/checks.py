@@ -17,7 +17,7 @@ SLOT_TYPES = ("entity", "content", "thing", "query", "question", "result", "verb
 
 # primitive -> (required params, optional params); the runtime implements exactly these.
 EFFECTS = {
-    "reveal_in": ({"place"}, set()),
+    "reveal_in": ({"place"}, {"intro"}),
     "reveal_category": ({"query"}, set()),
     "set_state": ({"target", "state"}, set()),
     "heat": ({"target"}, set()),

@@ -33,9 +33,12 @@ def reveal_in(world: World, params: dict, b: dict, ctx) -> str:
     world.known.update(new)
     for e in new + [place]:
         world.known_contents.update(world.content_names(e))
+    intro = f"{params['intro']} {place}. " if params.get("intro") else ""
     if not new:
-        return f"Found nothing in/on {place}"
-    return found(world, new)
+        names = world.content_names(place)
+        inside = f"{place} contains {', '.join(names)}" if names else f"Found nothing in/on {place}"
+        return intro + inside
+    return intro + found(world, new)
 
 
 _PLURAL = [("ies", "y"), ("oes", "o"), ("ches", "ch"), ("shes", "sh"), ("ses", "s"), ("s", "")]
@@ -83,7 +86,7 @@ def _index(domain) -> tuple:
         keys = {e.id: _static_keys(e, domain) for e in domain.entities}
         inverted: dict = {}
         for e in domain.entities:
-            if e.kind == "movable":
+            if e.kind != "room":  # appliances and furniture too: `Look for kettle`
                 for k in keys[e.id]:
                     inverted.setdefault(k, []).append(e.id)
         index = (domain, keys, inverted)
@@ -217,8 +220,12 @@ def heat_all_in(world: World, params: dict, b: dict, ctx) -> None:
 
 
 def _into(world: World, target: str, what: str) -> None:
+    spec = world.specs[target]
     if not world.is_container(target):
         raise ActionFailed(f"{target} is not a container: {what} must go into a container")
+    if spec.kind == "furniture" and "appliance" not in spec.tags:
+        raise ActionFailed(f"{target} is not something to pour into: {what} must go into a container"
+                           f" standing there (a cup, bowl, pan, pot) or an appliance such as a kettle")
 
 
 def move(world: World, params: dict, b: dict, ctx) -> None:
