@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 from ..compiler import ast as A
-from ..compiler.model import CompiledDomain, Persona, Task
+from ..compiler.model import CompiledDomain, Task
 from .classes import entity_matcher, node_matcher, render
 from .dishes import Dish, table
 from .styles import process_ok
@@ -88,6 +88,8 @@ class Ctx:
         self.meal_sides = True  # `sides` means every side at the meal's places (`for all`), else it's sides
         self._done: dict = {}  # (dish key, component) -> completes?
         self._placed: dict = {}  # dish key -> the pieces placed on it, as a dish of their own
+        self._kinds: dict = {}  # (dish key, component) -> sweet | savory | beverage
+        self._sides: dict = {}  # dish keys (or None) -> their sides
 
     def completes(self, dish: Dish, comps) -> bool:
         """Whether a dish completes any of the components (each checked once, on demand)."""
@@ -105,13 +107,19 @@ class Ctx:
     def sides(self, dishes: list | None) -> list:
         """What is served alongside `dishes` (None: alongside the meal's dishes) at the same dining place:
         other food in its own vessel, condiments or milk in their containers, pieces placed on the plate."""
+        memo = None if dishes is None else tuple(d.key for d in dishes)
+        hit = self._sides.get(memo)
+        if hit is not None:
+            return hit
         if dishes is None:
             dishes = [d for d in self.dishes if self.completes(d, self.task_components)] or self.dishes
         places = {d.place for d in dishes}
         keys = {d.key for d in dishes}
         out = [d for d in self.table if d.place in places and d.key not in keys
                and (d.as_is or not self.completes(d, self.task_components))]
-        return out + [self._placed_on(d) for d in dishes if d.placed]
+        out += [self._placed_on(d) for d in dishes if d.placed]
+        self._sides[memo] = out
+        return out
 
     def _placed_on(self, dish: Dish) -> Dish:
         hit = self._placed.get(dish.key)
@@ -137,10 +145,13 @@ class Ctx:
 
     def kind(self, dish: Dish, comp: str) -> str:
         """The kind (sweet, savory, beverage) of a dish of `comp`: toast with jam is sweet."""
-        c = self.domain.component[comp]
-        if c.alt_when is not None and compiled(self.domain, c.alt_when)(self, [dish]).ok:
-            return c.alt_kind
-        return c.kind
+        key = (dish.key, comp)
+        hit = self._kinds.get(key)
+        if hit is None:
+            c = self.domain.component[comp]
+            alt = c.alt_when is not None and compiled(self.domain, c.alt_when)(self, [dish]).ok
+            hit = self._kinds[key] = c.alt_kind if alt else c.kind
+        return hit
 
     def kind_ok(self, dish: Dish, comp: str, targets) -> bool:
         """Whether a dish of `comp` is among `targets` (a kind target asks the dish's own kind)."""
@@ -459,67 +470,6 @@ _PREDS = {"has": _p_has, "has_no": _p_has_no, "has_only": _p_has_only, "count": 
           "available": _p_available, "uses": _p_uses, "task_has": _p_task_has, "made": _p_made}
 
 
-# ------------------------------------------------------------------ preferences
-def verdict(ctx: Ctx, pref) -> Verdict:
-    """Evaluate one preference on an evaluation context."""
-    rule = pref.rule
-    targets = rule.scope.targets if rule.scope else ("all",)
-    comps = [c for c in ctx.task.components if any(c in ctx.expand(t) for t in targets)]
-    if not comps:
-        return Verdict(pref.id, pref.text, "inapplicable", f"the task has no {' or '.join(targets)}")
-    per_dish = _per_dish_cond(rule)
-    if rule.scope is not None and rule.scope.cond is not None and not per_dish:
-        cond = compiled(ctx.domain, rule, "cond")(ctx, [])
-        if not cond.ok:
-            return Verdict(pref.id, pref.text, "inapplicable", cond.why)
-    ctx.meal_sides = "all" in targets
-    results, skipped = _results(ctx, rule, comps, per_dish)
-    if not results:
-        return Verdict(pref.id, pref.text, "inapplicable", skipped)
-    progress = sum(r.closeness for r in results) / len(results)
-    for r in results:
-        if not r.ok:
-            return Verdict(pref.id, pref.text, "violated", r.why, r.steps, progress)
-    return Verdict(pref.id, pref.text, "satisfied", results[-1].why, results[-1].steps, 1.0)
+from .verdicts import evaluate, verdict  # noqa: E402  (preference-level verdicts; re-exported here)
 
-
-def _results(ctx: Ctx, rule: A.Rule, comps: list, per_dish: bool) -> tuple:
-    """Outcomes per target component; with a per-dish condition, only dishes where it holds count."""
-    f = compiled(ctx.domain, rule)
-    cond = compiled(ctx.domain, rule, "cond") if per_dish else None
-    results, skipped = [], ""
-    targets = rule.scope.targets if rule.scope else ("all",)
-    for c in comps:
-        dishes = [d for d in ctx.dishes if ctx.completes(d, (c,))]
-        if not dishes:
-            if ctx.domain.component[c].kind in targets or not set(targets) <= _KINDS:
-                results.append(Outcome(False, f"{c} was not completed"))
-            continue
-        dishes = [d for d in dishes if ctx.kind_ok(d, c, targets)]
-        if not dishes:
-            skipped = f"the {c} served is not {' or '.join(targets)}"
-            continue
-        if cond is not None:
-            held = [d for d in dishes if cond(ctx, [d]).ok]
-            if not held:
-                skipped = cond(ctx, dishes).why
-                continue
-            dishes = held
-        results.append(f(ctx, dishes))
-    return results, skipped
-
-
-def _per_dish_cond(rule: A.Rule) -> bool:
-    """Whether the scope condition talks about the dish (`it`, `sides`): then it is checked per dish."""
-    cond = rule.scope.cond if rule.scope is not None else None
-    if cond is None:
-        return False
-    return any(isinstance(n, A.Pred) and n.subject in ("it", "sides") for n in A.walk(cond))
-
-
-def evaluate(domain: CompiledDomain, world: World, task: Task, persona: Persona | None) -> Evaluation:
-    """Evaluate every preference of `persona` on the episode in `world`."""
-    ctx = Ctx(domain, world, task)
-    verdicts = tuple(verdict(ctx, p) for p in persona.preferences) if persona else ()
-    completed = tuple(c for c in task.components if any(ctx.completes(d, (c,)) for d in ctx.dishes))
-    return Evaluation(verdicts, world.questions, completed)
+__all__ = ["Ctx", "Evaluation", "Outcome", "Verdict", "compiled", "evaluate", "verdict"]
