@@ -11,36 +11,74 @@ from .cli_episode import add_spec_option
 def _names(text: str, pool: dict, what: str) -> list:
     if text == "all":
         return list(pool)
-    names = [x.strip() for x in text.split(",") if x.strip()]
+    names = list(dict.fromkeys(x.strip() for x in text.split(",") if x.strip()))
     bad = [n for n in names if n not in pool]
-    if bad:
-        print(f"adapt: unknown {what} {', '.join(bad)} (choose from: {', '.join(pool)}, or all)", file=sys.stderr)
+    if bad or not names:
+        print(f"adapt: unknown {what} {', '.join(bad) or '(none given)'} "
+              f"(choose from: {', '.join(pool)}, or all)", file=sys.stderr)
         raise SystemExit(2)
     return names
 
 
-def _cmd_rollout(args) -> int:
-    from .agents.scripted import AGENTS
-    from .compiler import load_domain
-    from .training.rollout import Job, parse_seeds, rollout
+def _seeds(text: str) -> list:
+    from .training.rollout import parse_seeds
 
-    domain = load_domain(args.spec)
-    agents = [a.strip() for a in args.agent.split(",")]
+    try:
+        return parse_seeds(text)
+    except ValueError as exc:
+        print(f"adapt: bad --seeds '{text}': {exc} (use 0-3 or 0,2,5)", file=sys.stderr)
+        raise SystemExit(2) from None
+
+
+def _grid(args, domain) -> list:
+    from .agents.scripted import AGENTS
+    from .training.rollout import Job
+
+    agents = list(dict.fromkeys(a.strip() for a in args.agent.split(",") if a.strip()))
     bad = [a for a in agents if a not in AGENTS]
-    if bad:
-        print(f"adapt: unknown agent {', '.join(bad)} (choose from: {', '.join(AGENTS)})", file=sys.stderr)
-        return 2
+    if bad or not agents:
+        print(f"adapt: unknown agent {', '.join(bad) or '(none given)'} (choose from: {', '.join(AGENTS)})",
+              file=sys.stderr)
+        raise SystemExit(2)
+    if args.workers < 1:
+        print(f"adapt: --workers must be at least 1 (got {args.workers})", file=sys.stderr)
+        raise SystemExit(2)
     personas = _names(args.personas, domain.persona, "persona")
     tasks = _names(args.tasks, domain.task, "task")
+    seeds = _seeds(args.seeds)
+    return [Job(a, p, t, s) for a in agents for p in personas for t in tasks for s in seeds]
+
+
+def _cmd_rollout(args) -> int:
+    from .compiler import load_domain
+    from .training.results import ResultsError
+    from .training.rollout import RolloutResult, rollout
+    from .training.workers import Interrupted, WorkerDied
+
+    jobs = _grid(args, load_domain(args.spec))
+    res = RolloutResult()
+    resume = "re-run the same command to resume (finished episodes are kept and skipped)"
     try:
-        seeds = parse_seeds(args.seeds)
-    except ValueError:
-        print(f"adapt: bad --seeds '{args.seeds}' (use 0-3 or 0,2,5)", file=sys.stderr)
-        return 2
-    jobs = [Job(a, p, t, s) for a in agents for p in personas for t in tasks for s in seeds]
-    ran = rollout(jobs, Path(args.out), workers=args.workers, spec=args.spec, progress=not args.quiet)
-    print(f"{ran} episode(s) run, {len(jobs) - ran} already in {args.out}")
-    return 0
+        res = rollout(jobs, Path(args.out), workers=args.workers, spec=args.spec, progress=not args.quiet)
+    except Interrupted as exc:
+        print(f"\nadapt: stopped by {exc}; every finished episode is in {args.out}; {resume}", file=sys.stderr)
+        return 130
+    except WorkerDied as exc:
+        print(f"adapt: {exc}; finished episodes are in {args.out}; {resume}", file=sys.stderr)
+        return 1
+    except ResultsError as exc:
+        tail = f"; {resume}" if exc.code == 1 and Path(args.out).is_file() else ""
+        print(f"adapt: {exc}{tail}", file=sys.stderr)
+        return exc.code
+    _summary(res, len(jobs), args.out)
+    return 1 if res.errors else 0
+
+
+def _summary(res, total: int, out: str) -> None:
+    print(f"{res.ran} episode(s) run, {res.present} already in {out}"
+          + (f", {res.errors} ended in an error (traceback in the record)" if res.errors else ""))
+    for line in res.error_samples:
+        print(f"  error: {line}", file=sys.stderr)
 
 
 def _cmd_eval(args) -> int:
@@ -81,13 +119,12 @@ def _cmd_users_check(args) -> int:
 
 def _cmd_check_solvable(args) -> int:
     from .compiler import load_domain
-    from .training.rollout import parse_seeds
     from .training.solvable import unsolved
 
     domain = load_domain(args.spec)
     personas = _names(args.personas, domain.persona, "persona")
     tasks = _names(args.tasks, domain.task, "task")
-    rows = unsolved(args.spec, personas, tasks, parse_seeds(args.seeds), args.workers)
+    rows = unsolved(args.spec, personas, tasks, _seeds(args.seeds), args.workers)
     for persona, task, seed, pref, reason in rows:
         print(f"{persona}/{task} seed {seed}: {pref}: {reason}")
     print(f"{len(rows)} applicable preference(s) the oracle could not satisfy")
