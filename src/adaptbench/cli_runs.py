@@ -81,24 +81,63 @@ def _summary(res, total: int, out: str) -> None:
         print(f"  error: {line}", file=sys.stderr)
 
 
-def _cmd_eval(args) -> int:
-    from .training.evaluate import load_records, render_csv, render_markdown, render_text, table
+def _load_runs(args):
+    from .training.records import RunsError, load_runs, mixed_specs
 
-    missing = [p for p in args.runs if not Path(p).exists()]
-    if missing:
-        print(f"adapt: no such file: {', '.join(missing)}", file=sys.stderr)
-        return 2
-    records = load_records(args.runs)
+    try:
+        runs = load_runs(args.runs)
+    except RunsError as exc:
+        print(f"adapt: {exc}", file=sys.stderr)
+        raise SystemExit(exc.code) from None
+    mixed = mixed_specs(runs)
+    if mixed and not args.allow_mixed:
+        print(f"adapt: {mixed}", file=sys.stderr)
+        raise SystemExit(1)
+    if runs.skipped:
+        print(f"adapt: {runs.skipped_text()}", file=sys.stderr)
+    if not runs.records:
+        print(f"adapt: no usable episode records in {', '.join(args.runs)}", file=sys.stderr)
+        raise SystemExit(1)
+    return runs
+
+
+def _tables(args, records: list) -> tuple:
+    if args.by:
+        from .training import breakdown as b
+
+        rows = b.breakdown(records, args.by)
+        return (rows, b.render_text(rows, args.by), lambda: b.render_csv(rows, args.by),
+                lambda: b.render_markdown(rows, args.by))
+    from .training.evaluate import render_csv, render_markdown, render_text, table
+
     rows = table(records)
-    print(render_text(rows))
+    return rows, render_text(rows), lambda: render_csv(rows), lambda: render_markdown(rows)
+
+
+def _write_out(path: str, text: str) -> None:
+    try:
+        Path(path).write_text(text)
+    except OSError as exc:
+        print(f"adapt: cannot write {path} ({exc.strerror})", file=sys.stderr)
+        raise SystemExit(1) from None
+
+
+def _cmd_eval(args) -> int:
+    records = _load_runs(args).records
+    rows, text, csv_text, md_text = _tables(args, records)
+    print(text)
+    none = sum(1 for r in records if r.get("satisfaction_rate") is None)
+    if none and not args.by:
+        print(f"{none} episode(s) had no applicable preference and are left out of the satisfaction rates")
     if args.plot:
+        from .training.evaluate import table
         from .training.plots import svg
 
-        Path(args.plot).write_text(svg(rows, records))
+        _write_out(args.plot, svg(rows if not args.by else table(records), records))
     if args.csv:
-        Path(args.csv).write_text(render_csv(rows) + "\n")
+        _write_out(args.csv, csv_text() + "\n")
     if args.markdown:
-        Path(args.markdown).write_text(render_markdown(rows) + "\n")
+        _write_out(args.markdown, md_text() + "\n")
     return 0
 
 
@@ -157,6 +196,10 @@ def add_commands(sub) -> None:
     p.add_argument("--csv", help="also write the table as CSV")
     p.add_argument("--markdown", help="also write the table as Markdown")
     p.add_argument("--plot", help="also draw satisfaction per agent and per persona as an SVG file")
+    p.add_argument("--by", choices=["task", "persona", "preference"],
+                   help="break the results down per task, persona or preference instead of the seen/unseen table")
+    p.add_argument("--allow-mixed", action="store_true",
+                   help="evaluate results of different spec versions together (refused by default)")
     p.set_defaults(func=_cmd_eval)
 
     p = sub.add_parser("users", help="offline user tools: `adapt users check`")
