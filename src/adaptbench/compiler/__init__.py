@@ -6,8 +6,10 @@
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import os
+import sys
 from pathlib import Path
 
 from .build import ADDERS, Draft
@@ -101,12 +103,17 @@ def cache_dir() -> Path:
 
 
 def load_domain(spec_dir="spec", use_cache: bool = True) -> CompiledDomain:
-    """The compiled domain for `spec_dir` (cached on disk by content hash); SpecError on errors."""
+    """The compiled domain for `spec_dir` (cached on disk by content hash); SpecError on errors.
+
+    A cache entry that fails to load or whose checksum does not match is discarded and rebuilt,
+    with a one-line warning naming the file."""
     dirs = [spec_dir] if isinstance(spec_dir, str | Path) else list(spec_dir)
     digest = spec_hash(dirs)
     path = cache_dir() / f"domain-{digest}.json"
     if use_cache and path.exists():
-        return CompiledDomain.from_json(path.read_text())
+        domain = _read_cache(path, digest)
+        if domain is not None:
+            return domain
     domain, diags = compile_spec(dirs)
     if domain is None:
         raise SpecError(diags)
@@ -115,11 +122,37 @@ def load_domain(spec_dir="spec", use_cache: bool = True) -> CompiledDomain:
     return domain
 
 
+_MAGIC = "adaptbench-domain-cache"
+
+
+def _read_cache(path: Path, digest: str) -> CompiledDomain | None:
+    try:
+        head, _, body = path.read_bytes().partition(b"\n")
+        magic, _, checksum = head.decode("ascii").partition(" ")
+        if magic != _MAGIC:
+            raise ValueError("not a cache file of this version")
+        if hashlib.sha256(body).hexdigest() != checksum:
+            raise ValueError("checksum mismatch")
+        domain = CompiledDomain.from_json(body.decode("utf-8"))
+        if domain.spec_hash != digest:
+            raise ValueError("entry of another spec")
+        return domain
+    except Exception as exc:  # noqa: BLE001 - any broken entry is rebuilt, never fatal
+        print(f"adapt: warning: discarded broken cache file {path} ({type(exc).__name__}: {exc}); rebuilding",
+              file=sys.stderr)
+        with contextlib.suppress(OSError):
+            path.unlink()
+        return None
+
+
 def _write_cache(path: Path, domain: CompiledDomain) -> None:
+    body = domain.to_json().encode("utf-8")
+    data = f"{_MAGIC} {hashlib.sha256(body).hexdigest()}\n".encode() + body
+    tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_suffix(".tmp")
-        tmp.write_text(domain.to_json())
+        tmp.write_bytes(data)
         tmp.replace(path)
-    except OSError:  # a read-only cache is not an error
-        pass
+    except OSError:  # a read-only or full cache is not an error
+        with contextlib.suppress(OSError):
+            tmp.unlink()
