@@ -18,6 +18,7 @@ from .diagnostics import Diagnostic, SpecError
 from .lint import lint
 from .loader import load_file, spec_files, validate_schema
 from .model import CompiledDomain
+from .sanity import check_location_cycles, check_templates
 
 __all__ = ["CompiledDomain", "Diagnostic", "SpecError", "compile_spec", "load_domain", "spec_hash"]
 
@@ -35,7 +36,11 @@ def spec_hash(spec_dirs) -> str:
     """A content hash of every spec file (names and bytes) plus the compiler version."""
     h = hashlib.sha256(COMPILER_VERSION.encode())
     for kind, path in spec_files([Path(d) for d in spec_dirs]):
-        h.update(kind.encode() + b"\0" + path.name.encode() + b"\0" + path.read_bytes() + b"\0")
+        try:
+            data = path.read_bytes()
+        except OSError as exc:  # compile_spec reports it; the hash only has to differ
+            data = f"<unreadable: {exc}>".encode()
+        h.update(kind.encode() + b"\0" + path.name.encode() + b"\0" + data + b"\0")
     return h.hexdigest()[:16]
 
 
@@ -55,7 +60,10 @@ def compile_spec(spec_dirs) -> tuple[CompiledDomain | None, list[Diagnostic]]:
         draft.diags.extend(schema_diags)
         if not schema_diags:
             ADDERS[kind](draft, doc)
+    if not check_location_cycles(draft):  # later passes walk holder chains
+        return None, sorted(draft.diags)
     check_all(draft)
+    check_templates(draft)
     if any(d.severity == "error" for d in draft.diags):
         return None, sorted(draft.diags)
     domain = _freeze(draft, spec_hash(dirs))

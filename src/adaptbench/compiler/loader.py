@@ -33,17 +33,38 @@ def schema(kind: str) -> dict:
 def load_file(path: Path, display: str) -> tuple[LoadedDoc | None, list[Diagnostic]]:
     """Read and parse one YAML file."""
     try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        return None, [Diagnostic(display, 1, 1, "S002", f"cannot read file: {exc}")]
+        data = path.read_bytes()
+    except OSError as exc:
+        return None, [Diagnostic(display, 1, 1, "S002", f"cannot read file: {exc.strerror or exc}")]
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = data.count(b"\n", 0, exc.start) + 1
+        col = exc.start - (data.rfind(b"\n", 0, exc.start) + 1) + 1
+        return None, [Diagnostic(display, line, col, "S002", f"not UTF-8 text: byte 0x{data[exc.start]:02x} cannot be "
+                                                             f"decoded (save the file as UTF-8)")]
     return load_yaml(text, display)
 
 
 def _validator(kind: str):
     import jsonschema  # imported lazily: the cached path never needs it
 
-    cls = jsonschema.validators.validator_for(schema(kind))
-    return cls(schema(kind))
+    base = jsonschema.validators.validator_for(schema(kind))
+    return jsonschema.validators.extend(base, {"pattern": _full_pattern})(schema(kind))
+
+
+def _full_pattern(validator, pattern: str, instance, schema_):
+    """`pattern` where `$` means the end of the string: Python's `$` also matches before a final newline,
+    so 'pan_0\\n' would pass `^[a-z0-9_]+$`."""
+    import re
+
+    from jsonschema.exceptions import ValidationError
+
+    if not validator.is_type(instance, "string"):
+        return
+    anchored = pattern[:-1] + r"\Z" if pattern.endswith("$") and not pattern.endswith(r"\$") else pattern
+    if not re.search(anchored, instance):
+        yield ValidationError(f"{instance!r} does not match {pattern!r}")
 
 
 def validate_schema(doc: LoadedDoc, kind: str) -> list[Diagnostic]:

@@ -154,5 +154,23 @@ def parse_rule(text: str) -> A.Rule:
             lines = text.splitlines() or [""]
             line, col = len(lines), len(lines[-1]) + 1
         raise RuleSyntaxError(_explain(exc, text), line, col) from None
+    _check_depth(tree)
     rule = _ToAst().transform(tree)
     return A.Rule(rule.line, rule.col, rule.scope, rule.expr, text)
+
+
+MAX_RULE_DEPTH = 100
+
+
+def _check_depth(tree) -> None:
+    """Bound the nesting of a parsed rule before anything recursive walks it."""
+    from lark import Tree
+
+    stack = [(tree, 1)]
+    while stack:
+        node, depth = stack.pop()
+        if depth > MAX_RULE_DEPTH:
+            line, col = _pos(node.meta) if isinstance(node, Tree) else (1, 1)
+            raise RuleSyntaxError(f"rule nested too deeply (more than {MAX_RULE_DEPTH} levels of brackets, "
+                                  f"'not' and connectives); split it into simpler preferences", line or 1, col or 1)
+        stack.extend((c, depth + 1) for c in node.children if isinstance(c, Tree))
