@@ -179,3 +179,37 @@ AVOCADO_TOAST = TOAST + ["Move avocado_0 to plate_1", "Move plate_1 to table_1"]
 ])
 def test_sweet_or_savory_per_dish(domain, actions, rule, expected):
     assert judge(domain, actions, rule, task="toast_coffee").verdict == expected
+
+
+# ---- more of the paper's sentences (issue 6, items 2 and 3)
+FRIED_IN_OIL = FIND + ["Look for oil", "Move pan_1 to stove_0", "Pour vegetable_oil from oil_bottle_1 to pan_1",
+                       "Move egg_0 to pan_1", "Turn on stove_0", "fry items in pan_1 to get eggs",
+                       "Move eggs from pan_1 to plate_0"]
+BUTTER_PAT = FRIED_IN_OIL + ["Move butter from butter_0 to plate_0", "Move plate_0 to table_1"]
+BUTTER_IN_PAN = FIND + ["Look for oil", "Move pan_1 to stove_0", "Move butter from butter_0 to pan_1",
+                        "Move egg_0 to pan_1", "Turn on stove_0", "fry items in pan_1 to get eggs",
+                        "Move eggs from pan_1 to plate_0", "Move plate_0 to table_1"]
+HOT_SAUCE_IN_TEA = FIND + ["Look for hot sauce"] + TEA + ["Pour tabasco_hot_sauce from hot_sauce_1 to cup_0",
+                                                           "Move cup_0 to table_1"] + PAN + SCRAMBLE + [
+    "Move plate_0 to table_1"]
+
+
+@pytest.mark.parametrize("actions,rule,expected,task", [
+    (BUTTER_PAT, "for egg_dish: it made with butter", "violated", "eggs"),
+    (BUTTER_PAT, "for egg_dish: it made with oil", "satisfied", "eggs"),
+    (BUTTER_PAT, "for egg_dish: it topped with butter", "satisfied", "eggs"),
+    (BUTTER_IN_PAN, "for egg_dish: it made with butter", "satisfied", "eggs"),
+    (HOT_SAUCE_IN_TEA, "for egg_dish: it has condiment or sides has condiment", "violated", "tea_eggs"),
+    (HOT_SAUCE_IN_TEA, "meal has condiment", "satisfied", "tea_eggs"),
+])
+def test_paper_sentences(domain, actions, rule, expected, task):
+    v = judge(domain, actions, rule, task=task)
+    assert v.verdict == expected, v.reason
+
+
+def test_tea_bag_under_the_hot_water_is_made_with(domain):
+    actions = FIND + TEA + ["Move cup_0 to table_1"]
+    assert judge(domain, actions, "for tea: it made with tea_bag", task="tea_eggs").verdict == "satisfied"
+    honey = actions + ["Pour honey from honey_0 to cup_0"]
+    assert judge(domain, honey, "for tea: it topped with honey", task="tea_eggs").verdict == "satisfied"
+    assert judge(domain, honey, "for tea: it made with honey", task="tea_eggs").verdict == "violated"

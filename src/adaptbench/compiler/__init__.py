@@ -156,7 +156,7 @@ def _read_cache(path: Path, digest: str) -> CompiledDomain | None:
 def _write_cache(path: Path, domain: CompiledDomain) -> None:
     body = domain.to_json().encode("utf-8")
     data = f"{_MAGIC} {hashlib.sha256(body).hexdigest()}\n".encode() + body
-    tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
+    tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")  # one per writer: concurrent runs never interleave
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp.write_bytes(data)

@@ -6,9 +6,9 @@ Vocabulary (docs/rules.md, *The table as a person sees it*):
 - a *piece* is one top-level thing in a dish's vessel: a poured/cooked content or an object placed in it;
 - a *maker* piece is the product of cooking or mixing (a result whose verb is not a cutting verb) or a
   piece that was heated; the dish was *made* when its last maker arrived in the vessel;
-- *made with*: leaves under a maker, pieces heated in the vessel after they arrived, and (for a dish with
-  no maker: cereal, parfait) every piece; *topped with*: pieces that arrived after the dish was made (or,
-  with no maker, after its first piece) and were not heated with it;
+- *topped with*: pieces that arrived after the dish was made (or, with no maker, after its first piece)
+  and were not heated with it; *made with*: every other piece (the makers, what went in before them, what
+  was heated in the vessel after it arrived) and, in a dish with no maker (cereal, parfait), every piece;
 - water that only poached or boiled something (an input, with eggs, of a heated step) is a cooking
   medium, not an ingredient (`medium`).
 """
@@ -110,12 +110,13 @@ def _dish(world: World, key: str, container: str | None, place: str, tops: list)
     for t in tops:
         leaves = _leaves(dish, t)
         heated_here = any(h >= t.arrived for h in t.heated)
-        if t in makers or heated_here or not makers:
-            dish.made.extend(leaves)
         if t is not base and t.arrived > base.arrived and not heated_here and t not in makers:
             dish.topped.extend(leaves)
             if t.entity is not None:
                 dish.placed.extend(leaves)
+            if makers:
+                continue
+        dish.made.extend(leaves)
     return dish
 
 
