@@ -2,8 +2,16 @@
 
 from __future__ import annotations
 
+import shutil
+from pathlib import Path
+
+import yaml
+
+from adaptbench.compiler import load_domain
 from adaptbench.runtime.env import Env
 from adaptbench.runtime.scene import sample_scene
+
+SPEC = Path(__file__).resolve().parents[2] / "spec"
 
 
 def test_same_seed_same_scene_different_seed_different_scene(domain):
@@ -44,3 +52,46 @@ def test_agent_starts_with_the_layout_only(domain):
     assert "- kitchen (kitchen)" in text and "  - fridge_0 (fridge)" in text
     assert "egg_0" not in text and "milk_0" not in text
     assert "sink_1 (standard kitchen sink, contains water)" in text
+
+
+def _append_objects(spec: Path) -> set:
+    """Append new optional objects at the start, middle and end of catalogue files; return their ids."""
+    new = {}
+    new["pantry.yaml"] = [("chia_pack_0", "pack of chia seeds", "counter_0", 0),
+                          ("chia_pack_1", "another pack of chia seeds", "cabinet_0", None)]
+    new["tableware.yaml"] = [("chia_pack_2", "a third pack of chia seeds", "counter_1", 3)]
+    ids = set()
+    for name, items in new.items():
+        path = spec / "objects" / name
+        data = yaml.safe_load(path.read_text())
+        for eid, desc, loc, pos in items:
+            obj = {"id": eid, "description": desc, "category": "box", "location": loc,
+                   "tags": ["container", "source"], "contents": ["salt"]}
+            data["objects"].insert(len(data["objects"]) if pos is None else pos, obj)
+            ids.add(eid)
+        path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return ids
+
+
+def test_adding_objects_anywhere_changes_no_other_object(domain, tmp_path):
+    spec = tmp_path / "spec"
+    shutil.copytree(SPEC, spec)
+    new = _append_objects(spec)
+    extended = load_domain(spec, use_cache=False)
+    assert extended.spec_hash != domain.spec_hash
+    for seed in range(100):
+        before, after = sample_scene(domain, seed), sample_scene(extended, seed)
+        assert before.present == after.present - new, seed
+        assert dict(before.location) == {e: h for e, h in after.location if e not in new}, seed
+        if not new & after.present:
+            assert before.scene_id == after.scene_id, seed
+
+
+def test_scene_id_is_a_hash_of_the_scene_not_the_spec(domain, tmp_path):
+    spec = tmp_path / "spec"
+    shutil.copytree(SPEC, spec)
+    path = spec / "tasks" / "tasks.yaml"
+    path.write_text("# an edit that changes the spec hash only\n" + path.read_text())
+    edited = load_domain(spec, use_cache=False)
+    assert edited.spec_hash != domain.spec_hash
+    assert [sample_scene(edited, s).scene_id for s in range(5)] == [sample_scene(domain, s).scene_id for s in range(5)]

@@ -1,10 +1,16 @@
 """Seeded scene sampling: every room, furniture item and mandatory object; each other movable
-with probability 0.7. An object whose holder was left out is put in the nearest holder present."""
+with probability 0.7. An object whose holder was left out is put in the nearest holder present.
+
+Stability: whether an optional object is present is decided by a hash of (seed, its id, its holder)
+alone, never by catalogue order or a shared random stream, so adding, removing or reordering other
+objects leaves every other object's presence unchanged. A component's required class that no drawn
+object provides keeps the provider with the smallest draw (the same for every catalogue order). The
+scene id is a hash of what the scene holds, so an unrelated spec edit keeps every scene id."""
 
 from __future__ import annotations
 
 import hashlib
-import random
+import json
 from dataclasses import dataclass
 
 from ..compiler.model import CompiledDomain
@@ -48,16 +54,24 @@ def sample_scene(domain: CompiledDomain, seed: int | None = 0, full: bool = Fals
 
 
 def _sample(domain: CompiledDomain, seed: int | None, full: bool) -> Scene:
-    rng = random.Random(seed)
-    present = set()
-    for e in domain.entities:  # catalogue order keeps the draw sequence stable
-        keep = full or e.kind != "movable" or e.mandatory or rng.random() < KEEP_PROBABILITY
-        if keep:
-            present.add(e.id)
-    _keep_required(domain, present)
+    present = {e.id for e in domain.entities
+               if full or e.kind != "movable" or e.mandatory or draw(seed, e.id, e.location) < KEEP_PROBABILITY}
+    _keep_required(domain, seed, present)
     location = tuple((e.id, _holder(domain, e.id, present)) for e in domain.entities if e.id in present)
-    digest = hashlib.sha256(f"{domain.spec_hash}:{seed}:{full}".encode()).hexdigest()[:12]
-    return Scene(f"scene-{digest}", seed, full, frozenset(present), location)
+    return Scene(scene_id(domain, location), seed, full, frozenset(present), location)
+
+
+def draw(seed: int | None, eid: str, holder: str | None) -> float:
+    """The object's own uniform draw in [0, 1) for `seed`: a hash of (seed, id, holder) only."""
+    digest = hashlib.blake2b(f"{seed}\x1f{eid}\x1f{holder}".encode(), digest_size=8).digest()
+    return int.from_bytes(digest, "big") / 2**64
+
+
+def scene_id(domain: CompiledDomain, location: tuple) -> str:
+    """A hash of what the scene holds: each present entity's id, holder, description and contents."""
+    held = sorted([eid, loc or "", domain.entity[eid].description, list(domain.entity[eid].contents)]
+                  for eid, loc in location)
+    return "scene-" + hashlib.sha256(json.dumps(held).encode()).hexdigest()[:12]
 
 
 def _provides(domain: CompiledDomain, e, cls: str) -> bool:
@@ -66,13 +80,14 @@ def _provides(domain: CompiledDomain, e, cls: str) -> bool:
     return any(cls == domain.substance[c].category or cls in domain.substance[c].tags for c in e.contents)
 
 
-def _keep_required(domain: CompiledDomain, present: set) -> None:
-    """Every class a component requires keeps at least one provider (the first in the catalogue)."""
+def _keep_required(domain: CompiledDomain, seed: int | None, present: set) -> None:
+    """Every class a component requires keeps at least one provider: when none was drawn, the one
+    with the smallest draw (independent of catalogue order)."""
     for comp in domain.components:
         for cls in comp.requires:
             movables = [e for e in domain.entities if e.kind == "movable" and _provides(domain, e, cls)]
             if movables and not any(e.id in present for e in movables):
-                present.add(movables[0].id)
+                present.add(min(movables, key=lambda e: (draw(seed, e.id, e.location), e.id)).id)
 
 
 def _holder(domain: CompiledDomain, eid: str, present: set) -> str | None:
