@@ -11,56 +11,133 @@ from .cli_episode import add_spec_option
 def _names(text: str, pool: dict, what: str) -> list:
     if text == "all":
         return list(pool)
-    names = [x.strip() for x in text.split(",") if x.strip()]
+    names = list(dict.fromkeys(x.strip() for x in text.split(",") if x.strip()))
     bad = [n for n in names if n not in pool]
-    if bad:
-        print(f"adapt: unknown {what} {', '.join(bad)} (choose from: {', '.join(pool)}, or all)", file=sys.stderr)
+    if bad or not names:
+        print(f"adapt: unknown {what} {', '.join(bad) or '(none given)'} "
+              f"(choose from: {', '.join(pool)}, or all)", file=sys.stderr)
         raise SystemExit(2)
     return names
 
 
-def _cmd_rollout(args) -> int:
-    from .agents.scripted import AGENTS
-    from .compiler import load_domain
-    from .training.rollout import Job, parse_seeds, rollout
+def _seeds(text: str) -> list:
+    from .training.rollout import parse_seeds
 
-    domain = load_domain(args.spec)
-    agents = [a.strip() for a in args.agent.split(",")]
+    try:
+        return parse_seeds(text)
+    except ValueError as exc:
+        print(f"adapt: bad --seeds '{text}': {exc} (use 0-3 or 0,2,5)", file=sys.stderr)
+        raise SystemExit(2) from None
+
+
+def _grid(args, domain) -> list:
+    from .agents.scripted import AGENTS
+    from .training.rollout import Job
+
+    agents = list(dict.fromkeys(a.strip() for a in args.agent.split(",") if a.strip()))
     bad = [a for a in agents if a not in AGENTS]
-    if bad:
-        print(f"adapt: unknown agent {', '.join(bad)} (choose from: {', '.join(AGENTS)})", file=sys.stderr)
-        return 2
+    if bad or not agents:
+        print(f"adapt: unknown agent {', '.join(bad) or '(none given)'} (choose from: {', '.join(AGENTS)})",
+              file=sys.stderr)
+        raise SystemExit(2)
+    if args.workers < 1:
+        print(f"adapt: --workers must be at least 1 (got {args.workers})", file=sys.stderr)
+        raise SystemExit(2)
     personas = _names(args.personas, domain.persona, "persona")
     tasks = _names(args.tasks, domain.task, "task")
+    seeds = _seeds(args.seeds)
+    return [Job(a, p, t, s) for a in agents for p in personas for t in tasks for s in seeds]
+
+
+def _cmd_rollout(args) -> int:
+    from .compiler import load_domain
+    from .training.results import ResultsError
+    from .training.rollout import RolloutResult, rollout
+    from .training.workers import Interrupted, WorkerDied
+
+    jobs = _grid(args, load_domain(args.spec))
+    res = RolloutResult()
+    resume = "re-run the same command to resume (finished episodes are kept and skipped)"
     try:
-        seeds = parse_seeds(args.seeds)
-    except ValueError:
-        print(f"adapt: bad --seeds '{args.seeds}' (use 0-3 or 0,2,5)", file=sys.stderr)
-        return 2
-    jobs = [Job(a, p, t, s) for a in agents for p in personas for t in tasks for s in seeds]
-    ran = rollout(jobs, Path(args.out), workers=args.workers, spec=args.spec, progress=not args.quiet)
-    print(f"{ran} episode(s) run, {len(jobs) - ran} already in {args.out}")
-    return 0
+        res = rollout(jobs, Path(args.out), workers=args.workers, spec=args.spec, progress=not args.quiet)
+    except Interrupted as exc:
+        print(f"\nadapt: stopped by {exc}; every finished episode is in {args.out}; {resume}", file=sys.stderr)
+        return 130
+    except WorkerDied as exc:
+        print(f"adapt: {exc}; finished episodes are in {args.out}; {resume}", file=sys.stderr)
+        return 1
+    except ResultsError as exc:
+        tail = f"; {resume}" if exc.code == 1 and Path(args.out).is_file() else ""
+        print(f"adapt: {exc}{tail}", file=sys.stderr)
+        return exc.code
+    _summary(res, len(jobs), args.out)
+    return 1 if res.errors else 0
+
+
+def _summary(res, total: int, out: str) -> None:
+    print(f"{res.ran} episode(s) run, {res.present} already in {out}"
+          + (f", {res.errors} ended in an error (traceback in the record)" if res.errors else ""))
+    for line in res.error_samples:
+        print(f"  error: {line}", file=sys.stderr)
+
+
+def _load_runs(args):
+    from .training.records import RunsError, load_runs, mixed_specs
+
+    try:
+        runs = load_runs(args.runs)
+    except RunsError as exc:
+        print(f"adapt: {exc}", file=sys.stderr)
+        raise SystemExit(exc.code) from None
+    mixed = mixed_specs(runs)
+    if mixed and not args.allow_mixed:
+        print(f"adapt: {mixed}", file=sys.stderr)
+        raise SystemExit(1)
+    if runs.skipped:
+        print(f"adapt: {runs.skipped_text()}", file=sys.stderr)
+    if not runs.records:
+        print(f"adapt: no usable episode records in {', '.join(args.runs)}", file=sys.stderr)
+        raise SystemExit(1)
+    return runs
+
+
+def _tables(args, records: list) -> tuple:
+    if args.by:
+        from .training import breakdown as b
+
+        rows = b.breakdown(records, args.by)
+        return (rows, b.render_text(rows, args.by), lambda: b.render_csv(rows, args.by),
+                lambda: b.render_markdown(rows, args.by))
+    from .training.evaluate import render_csv, render_markdown, render_text, table
+
+    rows = table(records)
+    return rows, render_text(rows), lambda: render_csv(rows), lambda: render_markdown(rows)
+
+
+def _write_out(path: str, text: str) -> None:
+    try:
+        Path(path).write_text(text)
+    except OSError as exc:
+        print(f"adapt: cannot write {path} ({exc.strerror})", file=sys.stderr)
+        raise SystemExit(1) from None
 
 
 def _cmd_eval(args) -> int:
-    from .training.evaluate import load_records, render_csv, render_markdown, render_text, table
-
-    missing = [p for p in args.runs if not Path(p).exists()]
-    if missing:
-        print(f"adapt: no such file: {', '.join(missing)}", file=sys.stderr)
-        return 2
-    records = load_records(args.runs)
-    rows = table(records)
-    print(render_text(rows))
+    records = _load_runs(args).records
+    rows, text, csv_text, md_text = _tables(args, records)
+    print(text)
+    none = sum(1 for r in records if r.get("satisfaction_rate") is None)
+    if none and not args.by:
+        print(f"{none} episode(s) had no applicable preference and are left out of the satisfaction rates")
     if args.plot:
+        from .training.evaluate import table
         from .training.plots import svg
 
-        Path(args.plot).write_text(svg(rows, records))
+        _write_out(args.plot, svg(rows if not args.by else table(records), records))
     if args.csv:
-        Path(args.csv).write_text(render_csv(rows) + "\n")
+        _write_out(args.csv, csv_text() + "\n")
     if args.markdown:
-        Path(args.markdown).write_text(render_markdown(rows) + "\n")
+        _write_out(args.markdown, md_text() + "\n")
     return 0
 
 
@@ -81,13 +158,12 @@ def _cmd_users_check(args) -> int:
 
 def _cmd_check_solvable(args) -> int:
     from .compiler import load_domain
-    from .training.rollout import parse_seeds
     from .training.solvable import unsolved
 
     domain = load_domain(args.spec)
     personas = _names(args.personas, domain.persona, "persona")
     tasks = _names(args.tasks, domain.task, "task")
-    rows = unsolved(args.spec, personas, tasks, parse_seeds(args.seeds), args.workers)
+    rows = unsolved(args.spec, personas, tasks, _seeds(args.seeds), args.workers)
     for persona, task, seed, pref, reason in rows:
         print(f"{persona}/{task} seed {seed}: {pref}: {reason}")
     print(f"{len(rows)} applicable preference(s) the oracle could not satisfy")
@@ -120,6 +196,10 @@ def add_commands(sub) -> None:
     p.add_argument("--csv", help="also write the table as CSV")
     p.add_argument("--markdown", help="also write the table as Markdown")
     p.add_argument("--plot", help="also draw satisfaction per agent and per persona as an SVG file")
+    p.add_argument("--by", choices=["task", "persona", "preference"],
+                   help="break the results down per task, persona or preference instead of the seen/unseen table")
+    p.add_argument("--allow-mixed", action="store_true",
+                   help="evaluate results of different spec versions together (refused by default)")
     p.set_defaults(func=_cmd_eval)
 
     p = sub.add_parser("users", help="offline user tools: `adapt users check`")

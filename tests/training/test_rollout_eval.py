@@ -14,22 +14,24 @@ from ..conftest import SPEC
 def test_parse_seeds():
     assert parse_seeds("0-3") == [0, 1, 2, 3]
     assert parse_seeds("1,5,7") == [1, 5, 7]
+    assert parse_seeds("0,0,0-1") == [0, 1]
 
 
 def test_rollout_appends_and_resumes(tmp_path, domain):
     persona = domain.personas[0].id
     out = tmp_path / "runs" / "never.jsonl"
     jobs = [Job("never-ask", persona, t, 0) for t in ("eggs", "cereal")]
-    assert rollout(jobs[:1], out, spec=str(SPEC), progress=False) == 1
+    assert rollout(jobs[:1], out, spec=str(SPEC), progress=False).ran == 1
     # a torn last line (a killed run) is ignored and the episode re-run
     with open(out, "a") as f:
         f.write('{"agent": "never-ask", "pers')
-    assert rollout(jobs, out, spec=str(SPEC), progress=False) == 1
-    assert rollout(jobs, out, spec=str(SPEC), progress=False) == 0
+    assert rollout(jobs, out, spec=str(SPEC), progress=False).ran == 1
+    assert rollout(jobs, out, spec=str(SPEC), progress=False).ran == 0
     assert done_keys(out) == {j.key for j in jobs}
     rec = json.loads(out.read_text().splitlines()[0])
     assert rec["steps"][-1]["action"] == "Declare Done"
-    assert {"preferences", "satisfaction_rate", "questions", "scene"} <= set(rec)
+    assert {"preferences", "satisfaction_rate", "questions", "scene", "spec_hash", "agent_config"} <= set(rec)
+    assert rec["spec_hash"] == domain.spec_hash and rec["agent_config"]["agent"] == "never-ask"
 
 
 def test_table_seen_unseen_and_se():

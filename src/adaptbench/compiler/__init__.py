@@ -118,7 +118,7 @@ def load_domain(spec_dir="spec", use_cache: bool = True) -> CompiledDomain:
 def _write_cache(path: Path, domain: CompiledDomain) -> None:
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_suffix(".tmp")
+        tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")  # one per writer: concurrent runs never interleave
         tmp.write_text(domain.to_json())
         tmp.replace(path)
     except OSError:  # a read-only cache is not an error

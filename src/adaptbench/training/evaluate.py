@@ -3,9 +3,9 @@ mean ± standard error, for seen and unseen personas under the release's cross-v
 
 from __future__ import annotations
 
-import json
+import csv
+import io
 import math
-from pathlib import Path
 
 # The release's 4 cross-validation splits: the unseen personas of each (the others are seen).
 UNSEEN = {0: ("leila", "lisa", "mark", "samantha"), 1: ("carlos", "jamal", "juan", "maria"),
@@ -13,22 +13,17 @@ UNSEEN = {0: ("leila", "lisa", "mark", "samantha"), 1: ("carlos", "jamal", "juan
 
 
 def load_records(paths) -> list:
-    """All episode records from JSONL files (torn lines skipped)."""
-    out = []
-    for p in paths:
-        for line in Path(p).read_text().splitlines():
-            try:
-                out.append(json.loads(line))
-            except json.JSONDecodeError:
-                continue
-    return out
+    """All usable episode records from JSONL files (see `records.load_runs` for what is skipped)."""
+    from .records import load_runs
+
+    return load_runs(paths).records
 
 
 def mean_se(values: list) -> tuple:
-    """Mean and standard error of the mean."""
+    """Mean and standard error of the mean; (None, None) for no values."""
     n = len(values)
     if n == 0:
-        return float("nan"), float("nan")
+        return None, None
     m = sum(values) / n
     if n == 1:
         return m, 0.0
@@ -73,11 +68,11 @@ def _order(agent: str) -> tuple:
 
 
 def _pct(ms) -> str:
-    return f"{ms[0] * 100:.1f}% ± {ms[1] * 100:.1f}%"
+    return "n/a" if ms[0] is None else f"{ms[0] * 100:.1f}% ± {ms[1] * 100:.1f}%"
 
 
 def _num(ms) -> str:
-    return f"{ms[0]:.1f} ± {ms[1]:.1f}"
+    return "n/a" if ms[0] is None else f"{ms[0]:.1f} ± {ms[1]:.1f}"
 
 
 HEADER = ["Method", "Episodes", "Satisfaction (seen)", "Satisfaction (unseen)", "Questions (seen)",
@@ -104,12 +99,21 @@ def render_markdown(rows: list) -> str:
     return "\n".join(lines)
 
 
+CSV_HEADER = ["agent", "episodes", "rate_seen", "rate_seen_se", "rate_unseen", "rate_unseen_se", "questions_seen",
+              "questions_seen_se", "questions_unseen", "questions_unseen_se"]
+
+
+def csv_text(header: list, rows: list) -> str:
+    """Quoted CSV (the csv module); None becomes an empty cell, floats keep 6 significant digits."""
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(header)
+    for row in rows:
+        w.writerow(["" if x is None else f"{x:.6g}" if isinstance(x, float) else x for x in row])
+    return buf.getvalue().rstrip("\n")
+
+
 def render_csv(rows: list) -> str:
-    """CSV with numeric columns."""
-    head = "agent,episodes,rate_seen,rate_seen_se,rate_unseen,rate_unseen_se,questions_seen,questions_seen_se," \
-           "questions_unseen,questions_unseen_se"
-    lines = [head]
-    for r in rows:
-        nums = [*r["rate_seen"], *r["rate_unseen"], *r["questions_seen"], *r["questions_unseen"]]
-        lines.append(",".join([r["agent"], str(r["episodes"])] + [f"{x:.6g}" for x in nums]))
-    return "\n".join(lines)
+    """CSV with numeric columns (empty where there is nothing to average)."""
+    return csv_text(CSV_HEADER, [[r["agent"], r["episodes"], *r["rate_seen"], *r["rate_unseen"], *r["questions_seen"],
+                                  *r["questions_unseen"]] for r in rows])

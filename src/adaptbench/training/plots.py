@@ -15,12 +15,17 @@ def _bars(rows: list, top: int) -> tuple[list, int]:
     y = top + 14
     for r in rows:
         m, se = r["rate_seen"]
+        if m is None:
+            out.append(f'<text x="10" y="{y + 17}">{escape(r["agent"])}</text>')
+            out.append(f'<text x="150" y="{y + 17}">n/a (no applicable preference)</text>')
+            y += BAR_H + GAP
+            continue
         width = max(0.0, m) * 480
         out.append(f'<text x="10" y="{y + 17}">{escape(r["agent"])}</text>')
         out.append(f'<rect x="150" y="{y}" width="{width:.1f}" height="{BAR_H}" fill="#4c78a8"/>')
         lo, hi = 150 + max(0, m - se) * 480, 150 + min(1, m + se) * 480
         out.append(f'<line x1="{lo:.1f}" y1="{y + BAR_H / 2}" x2="{hi:.1f}" y2="{y + BAR_H / 2}" stroke="black"/>')
-        q = r["questions_seen"][0]
+        q = r["questions_seen"][0] or 0.0
         out.append(f'<text x="{150 + width + 8:.1f}" y="{y + 17}">{m:.1%} · {q:.1f} questions</text>')
         y += BAR_H + GAP
     return out, y
@@ -46,10 +51,11 @@ def _heatmap(records: list, agents: list, top: int) -> tuple[list, int]:
         for j, a in enumerate(agents):
             rates = [r["satisfaction_rate"] for r in records
                      if r["persona"] == p and r["agent"] == a and r["satisfaction_rate"] is not None]
-            m = mean_se(rates)[0] if rates else 0.0
+            m = mean_se(rates)[0]
             x = 150 + j * cell_w
-            out.append(f'<rect x="{x}" y="{y}" width="{cell_w - 2}" height="18" fill="{_color(m)}"/>')
-            out.append(f'<text x="{x + 4}" y="{y + 13}" font-size="11">{m:.0%}</text>')
+            fill, label = ("#dddddd", "n/a") if m is None else (_color(m), f"{m:.0%}")
+            out.append(f'<rect x="{x}" y="{y}" width="{cell_w - 2}" height="18" fill="{fill}"/>')
+            out.append(f'<text x="{x + 4}" y="{y + 13}" font-size="11">{label}</text>')
         y += 20
     return out, y
 

@@ -1,18 +1,23 @@
 """Rollouts: run agents over personas x tasks x seeds, one JSON line per episode.
 
-Results are appended as episodes finish, so a killed run loses nothing; running the same command
-again skips the episodes already in the file.
+Results are appended as episodes finish (see `results.py`: locked, append-only, each episode once),
+so a killed run loses only the episodes in flight; running the same command again skips the episodes
+of the same spec and agent configuration already in the file. Ctrl-C or SIGTERM stops the workers
+at once and keeps everything finished; an exception in one episode becomes that episode's error
+record and the run goes on.
 """
 
 from __future__ import annotations
 
-import json
-import os
-from concurrent.futures import ProcessPoolExecutor, as_completed
-from dataclasses import dataclass
+import traceback
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..progress import Progress
+from .results import ResultsFile, episode_key
+from .workers import Interrupted, run_pool
+
+MAX_SEEDS = 1_000_000
 
 
 @dataclass(frozen=True)
@@ -26,43 +31,66 @@ class Job:
 
     @property
     def key(self) -> tuple:
-        """Identity of the episode in a results file."""
+        """(agent, persona, task, seed): the episode within one spec and agent configuration."""
         return (self.agent, self.persona, self.task, self.seed)
 
 
+@dataclass
+class RolloutResult:
+    """What a rollout did: episodes run, already present, errors, and whether it was interrupted."""
+
+    ran: int = 0
+    present: int = 0
+    errors: int = 0
+    interrupted: bool = False
+    error_samples: list = field(default_factory=list)
+
+
+def _seed_range(part: str) -> range:
+    a, _, b = part.partition("-")
+    lo, hi = int(a), int(b)
+    if hi < lo:
+        raise ValueError(f"empty seed range '{part}' ({hi} < {lo})")
+    if hi - lo + 1 > MAX_SEEDS:
+        raise ValueError(f"seed range '{part}' has {hi - lo + 1} seeds (at most {MAX_SEEDS:,})")
+    return range(lo, hi + 1)
+
+
 def parse_seeds(text: str) -> list:
-    """'0-3' -> [0, 1, 2, 3]; '1,5,7' -> [1, 5, 7]."""
-    out = []
-    for part in text.split(","):
-        if "-" in part:
-            a, b = part.split("-")
-            out.extend(range(int(a), int(b) + 1))
-        elif part.strip():
-            out.append(int(part))
-    return out
-
-
-def done_keys(path: Path) -> set:
-    """Episodes already in a results file (a torn last line is ignored)."""
-    keys = set()
-    if not path.exists():
-        return keys
-    for line in path.read_text().splitlines():
-        try:
-            r = json.loads(line)
-        except json.JSONDecodeError:
+    """'0-3' -> [0, 1, 2, 3]; '1,5,7' -> [1, 5, 7]; repeats dropped, order kept. ValueError when
+    a part is not a number or a range, a range is empty or the total is absurd."""
+    out: dict = {}
+    for part in (p.strip() for p in text.split(",")):
+        if not part:
             continue
-        keys.add((r["agent"], r["persona"], r["task"], r["seed"]))
+        if not part.replace("-", "").isdigit() or part.count("-") > 1 or part.startswith("-"):
+            raise ValueError(f"'{part}' is not a seed (a number >= 0) or a range such as 0-3")
+        for s in (_seed_range(part) if "-" in part else [int(part)]):
+            out[s] = None
+        if len(out) > MAX_SEEDS:
+            raise ValueError(f"more than {MAX_SEEDS:,} seeds")
+    if not out:
+        raise ValueError("no seeds given")
+    return list(out)
+
+
+def config_of(agent: str) -> dict:
+    """The agent configuration recorded with each episode (scripted agents with the offline user)."""
+    return {"agent": agent, "user": "offline"}
+
+
+def done_keys(path: Path, spec_hash: str | None = None) -> set:
+    """(agent, persona, task, seed) of the episodes in a results file (of one spec if given)."""
+    keys = set()
+    if not Path(path).exists():
+        return keys
+    from .results import iter_lines, parse_line
+
+    for _, line in iter_lines(Path(path)):
+        r, _why = parse_line(line)
+        if r is not None and (spec_hash is None or r.get("spec_hash") == spec_hash):
+            keys.add((r["agent"], r["persona"], r["task"], r["seed"]))
     return keys
-
-
-def drop_torn_tail(path: Path) -> None:
-    """Cut a partial last line left by a killed run, so appends start on a fresh line."""
-    if not path.exists():
-        return
-    data = path.read_bytes()
-    if data and not data.endswith(b"\n"):
-        path.write_bytes(data[: data.rfind(b"\n") + 1])
 
 
 _DOMAIN = {}
@@ -71,7 +99,13 @@ _DOMAIN = {}
 def _init(spec: str) -> None:
     from ..compiler import load_domain
 
-    _DOMAIN["d"] = load_domain(spec)
+    if "d" not in _DOMAIN or _DOMAIN.get("spec") != spec:
+        _DOMAIN["d"], _DOMAIN["spec"] = load_domain(spec), spec
+
+
+def _header(job: Job, spec_hash: str) -> dict:
+    return {"agent": job.agent, "agent_config": config_of(job.agent), "persona": job.persona,
+            "task": job.task, "seed": job.seed, "spec_hash": spec_hash}
 
 
 def run_episode(job: Job, spec: str = "spec") -> dict:
@@ -80,8 +114,7 @@ def run_episode(job: Job, spec: str = "spec") -> dict:
     from ..agents.users import OfflineUser
     from ..runtime.env import Env
 
-    if "d" not in _DOMAIN:
-        _init(spec)
+    _init(spec)
     d = _DOMAIN["d"]
     persona, task = d.persona[job.persona], d.task[job.task]
     env = Env(d, task=job.task, persona=job.persona, seed=job.seed, user=OfflineUser(d, persona, task))
@@ -89,37 +122,53 @@ def run_episode(job: Job, spec: str = "spec") -> dict:
     RUNNERS[job.agent](env)
     ev = env.evaluate()
     steps = [{"action": e.text, "ok": e.ok, "observation": e.observation, "reply": e.reply} for e in env.world.trace]
-    return {"agent": job.agent, "persona": job.persona, "task": job.task, "seed": job.seed,
-            "scene": env.scene.scene_id, "spec_hash": d.spec_hash, "steps": steps, "n_steps": len(steps),
+    return {**_header(job, d.spec_hash), "scene": env.scene.scene_id, "steps": steps, "n_steps": len(steps),
             "satisfied": ev.satisfied, "violated": ev.violated, **ev.as_dict()}
 
 
-def rollout(jobs: list, out: Path, workers: int = 1, spec: str = "spec", progress: bool = True) -> int:
-    """Run the jobs not yet in `out`, appending each result as it finishes; returns how many ran."""
-    out.parent.mkdir(parents=True, exist_ok=True)
-    drop_torn_tail(out)
-    have = done_keys(out)
-    todo = [j for j in jobs if j.key not in have]
-    bar = Progress(len(todo), f"rollout -> {out.name}") if progress else None
-    with open(out, "a", buffering=1) as f:
-        if workers <= 1:
-            for j in todo:
-                _write(f, run_episode(j, spec), bar)
-        else:
-            with ProcessPoolExecutor(workers, initializer=_init, initargs=(spec,)) as pool:
-                futures = [pool.submit(run_episode, j, spec) for j in todo]
-                for fut in as_completed(futures):
-                    _write(f, fut.result(), bar)
-    if bar:
-        bar.__exit__(None, None, None)
-    return len(todo)
+def safe_episode(job: Job, spec: str = "spec") -> dict:
+    """`run_episode`, with an exception turned into the episode's error record (traceback included)."""
+    try:
+        return run_episode(job, spec)
+    except Exception as exc:  # noqa: BLE001 - one episode's bug must not end the run
+        return {**_header(job, _DOMAIN["d"].spec_hash if "d" in _DOMAIN else None),
+                "error": f"{type(exc).__name__}: {exc}", "traceback": traceback.format_exc()}
 
 
-def _write(f, record: dict, bar) -> None:
-    f.write(json.dumps(record) + "\n")
-    f.flush()
-    os.fsync(f.fileno())
+def rollout(jobs: list, out: Path, workers: int = 1, spec: str = "spec", progress: bool = True) -> RolloutResult:
+    """Run the jobs not yet in `out`, appending each result as it finishes. Raises ResultsError (bad
+    --out, locked, disk full) and Interrupted (Ctrl-C, SIGTERM) with the finished episodes kept."""
+    _init(spec)
+    spec_hash = _DOMAIN["d"].spec_hash
+    jobs = list(dict.fromkeys(jobs))
+    res = RolloutResult()
+    with ResultsFile.open(Path(out), spec_hash) as store:
+        todo = [j for j in jobs if episode_key(_header(j, spec_hash)) not in store.done]
+        res.present = len(jobs) - len(todo)
+        bar = Progress(len(todo), f"rollout -> {Path(out).name}") if progress else None
+        try:
+            for record in run_pool(todo, spec, workers):
+                _write(store, record, bar, res)
+        except Interrupted:
+            res.interrupted = True
+            raise
+        finally:
+            if bar:
+                bar.__exit__(None, None, None)
+    return res
+
+
+def _write(store: ResultsFile, record: dict, bar, res: RolloutResult) -> None:
+    if not store.append(record):
+        return
+    res.ran += 1
+    if "error" in record:
+        res.errors += 1
+        if len(res.error_samples) < 3:
+            res.error_samples.append(f"{record['agent']} {record['persona']}/{record['task']} seed {record['seed']}: "
+                                     f"{record['error']}")
     if bar:
-        rate = record["satisfaction_rate"]
-        bar.update(note=f"{record['agent']} {record['persona']}/{record['task']} "
-                        f"{'n/a' if rate is None else f'{rate:.0%}'}")
+        rate = record.get("satisfaction_rate")
+        note = "error" if "error" in record else ("n/a" if rate is None else f"{rate:.0%}")
+        bar.update(note=f"{record['agent']} {record['persona']}/{record['task']} {note}")
+

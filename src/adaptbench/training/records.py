@@ -1,0 +1,116 @@
+"""Reading results files for evaluation: every line accounted for.
+
+Lines that are not usable episodes are skipped and counted by reason (torn or not JSON, not UTF-8,
+not an episode record, bad values, an episode that ended in an error, a duplicate of an episode
+already read), and the spec hashes of each file are collected so evaluation can refuse to mix specs.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from .results import episode_key, iter_lines, parse_line
+
+
+class RunsError(Exception):
+    """Results files that cannot be evaluated (missing, unreadable, mixed specs); the message says why."""
+
+    def __init__(self, message: str, code: int = 1):
+        super().__init__(message)
+        self.code = code
+
+
+@dataclass
+class Runs:
+    """Usable episode records, what was skipped and why, and the spec hashes found in each file."""
+
+    records: list = field(default_factory=list)
+    skipped: Counter = field(default_factory=Counter)
+    hashes: dict = field(default_factory=dict)  # file -> Counter of spec hashes
+
+    def skipped_text(self) -> str:
+        """'skipped 3 line(s): 2 duplicate episode, 1 not JSON (torn line)' or ''."""
+        if not self.skipped:
+            return ""
+        parts = ", ".join(f"{n} {why}" for why, n in self.skipped.most_common())
+        return f"skipped {sum(self.skipped.values())} line(s): {parts}"
+
+
+def _bad_values(rec: dict) -> str | None:
+    if "satisfaction_rate" not in rec or "questions" not in rec:
+        return "not an episode record"
+    rate, q = rec["satisfaction_rate"], rec["questions"]
+    if not isinstance(rec.get("agent"), str) or not isinstance(rec.get("persona"), str):
+        return "bad agent or persona"
+    if rate is not None and (isinstance(rate, bool) or not isinstance(rate, int | float) or not 0 <= rate <= 1):
+        return "bad satisfaction_rate"
+    if isinstance(q, bool) or not isinstance(q, int | float) or q < 0:
+        return "bad questions"
+    if "split" in rec and not _known_split(rec["split"]):
+        return "unknown split"
+    return None
+
+
+def _known_split(split) -> bool:
+    from .evaluate import UNSEEN
+
+    try:
+        return int(split) in UNSEEN
+    except (TypeError, ValueError):
+        return False
+
+
+def _classify(rec, why, seen: set) -> str | None:
+    if rec is None:
+        return {"not JSON": "not JSON (torn line)"}.get(why, why)
+    if "error" in rec:
+        return "episode ended in an error"
+    bad = _bad_values(rec)
+    if bad:
+        return bad
+    key = episode_key(rec)
+    if key in seen:
+        return "duplicate episode"
+    seen.add(key)
+    return None
+
+
+def _check_file(path: Path) -> None:
+    if not path.exists():
+        raise RunsError(f"no such file: {path}", 2)
+    if path.is_dir():
+        raise RunsError(f"{path} is a directory; give the JSONL files written by adapt rollout", 2)
+
+
+def load_runs(paths) -> Runs:
+    """Read every file; RunsError for a missing or unreadable one."""
+    runs, seen = Runs(), set()
+    for p in map(Path, paths):
+        _check_file(p)
+        hashes = runs.hashes.setdefault(str(p), Counter())
+        try:
+            for _, line in iter_lines(p):
+                rec, why = parse_line(line)
+                reason = _classify(rec, why, seen)
+                if reason:
+                    runs.skipped[reason] += 1
+                    continue
+                hashes[rec.get("spec_hash")] += 1
+                runs.records.append(rec)
+            tail = p.read_bytes()[-1:]
+        except OSError as exc:
+            raise RunsError(f"cannot read {p} ({exc.strerror})", 2) from None
+        if tail and tail != b"\n":
+            runs.skipped["torn last line"] += 1
+    return runs
+
+
+def mixed_specs(runs: Runs) -> str | None:
+    """A message naming the files and their spec hashes when more than one spec is present, else None."""
+    every = {h for c in runs.hashes.values() for h in c}
+    if len(every) <= 1:
+        return None
+    lines = [f"  {f}: spec {', '.join(str(h) for h in c)}" for f, c in runs.hashes.items() if c]
+    return ("results of different specs (compare like with like, or pass --allow-mixed):\n" + "\n".join(lines))

@@ -1,0 +1,143 @@
+"""A small process pool for rollouts that stops promptly and never leaves orphans.
+
+- Workers ignore SIGINT; the parent turns Ctrl-C and SIGTERM into `Interrupted`, terminates the
+  workers (killing any that do not exit within a second) and lets the caller keep what finished.
+- On Linux each worker asks the kernel to kill it when its parent dies (PR_SET_PDEATHSIG); elsewhere
+  it polls its parent between episodes.
+- A worker that dies (out of memory, killed) ends the run with `WorkerDied`; finished work is kept.
+"""
+
+from __future__ import annotations
+
+import multiprocessing as mp
+import os
+import signal
+import sys
+from contextlib import contextmanager
+
+POLL_SECONDS = 0.2
+
+
+class Interrupted(BaseException):
+    """The run was stopped by Ctrl-C or SIGTERM (a BaseException, so an episode's `except Exception` cannot
+    swallow it)."""
+
+    def __init__(self, signum: int):
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
+class WorkerDied(RuntimeError):
+    """A worker process ended without being asked to."""
+
+
+def _die_with_parent(parent: int) -> None:
+    if sys.platform.startswith("linux"):
+        try:
+            import ctypes
+
+            libc = ctypes.CDLL(None, use_errno=True)
+            libc.prctl(1, signal.SIGKILL, 0, 0, 0)  # PR_SET_PDEATHSIG
+        except (OSError, AttributeError):  # pragma: no cover
+            pass
+    if os.getppid() != parent:  # the parent died before prctl took effect
+        os._exit(1)
+
+
+def _worker(parent: int, spec: str, jobs, results) -> None:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    _die_with_parent(parent)
+    from .rollout import _init, safe_episode
+
+    _init(spec)
+    while True:
+        job = jobs.get()
+        if job is None or os.getppid() != parent:
+            return
+        results.put(safe_episode(job, spec))
+
+
+@contextmanager
+def stop_signals():
+    """Turn SIGINT and SIGTERM into `Interrupted` for the duration (main thread only)."""
+    def raise_(signum, _frame):
+        raise Interrupted(signum)
+
+    try:
+        old = {s: signal.signal(s, raise_) for s in (signal.SIGINT, signal.SIGTERM)}
+    except ValueError:  # not the main thread: leave signals alone
+        yield
+        return
+    try:
+        yield
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h)
+
+
+def run_pool(jobs: list, spec: str, workers: int):
+    """Yield one record per job (in completion order), on `workers` processes (1: in this process)."""
+    from .rollout import safe_episode
+
+    with stop_signals():
+        if workers <= 1 or len(jobs) <= 1:
+            for job in jobs:
+                yield safe_episode(job, spec)
+            return
+        yield from _parallel(jobs, spec, min(workers, len(jobs)))
+
+
+def _context():
+    methods = mp.get_all_start_methods()
+    return mp.get_context("fork" if "fork" in methods and sys.platform.startswith("linux") else None)
+
+
+def _parallel(jobs: list, spec: str, n: int):
+    ctx = _context()
+    job_q, result_q = ctx.Queue(), ctx.SimpleQueue()
+    procs = [ctx.Process(target=_worker, args=(os.getpid(), spec, job_q, result_q), daemon=True) for _ in range(n)]
+    for p in procs:
+        p.start()
+    try:
+        for job in jobs:
+            job_q.put(job)
+        for _ in procs:
+            job_q.put(None)
+        yield from _collect(len(jobs), procs, result_q)
+    finally:
+        _stop(procs)
+        job_q.cancel_join_thread()
+        job_q.close()
+
+
+def _collect(total: int, procs: list, result_q):
+    got = 0
+    while got < total:
+        if result_q.empty():
+            if not any(p.is_alive() for p in procs) and result_q.empty():
+                raise WorkerDied(f"every worker ended with {total - got} episode(s) not run")
+            dead = [p for p in procs if p.exitcode not in (None, 0)]
+            if dead and result_q.empty():
+                raise WorkerDied(f"a worker died (exit code {dead[0].exitcode}) with episodes in flight")
+            _wait(procs, result_q)
+            continue
+        got += 1
+        yield result_q.get()
+
+
+def _wait(procs: list, result_q) -> None:
+    from multiprocessing.connection import wait
+
+    wait([result_q._reader] + [p.sentinel for p in procs if p.is_alive()], timeout=POLL_SECONDS)
+
+
+def _stop(procs: list) -> None:
+    for p in procs:
+        if p.is_alive():
+            p.terminate()
+    for p in procs:
+        p.join(timeout=1.0)
+        if p.is_alive():  # pragma: no cover - ignored SIGTERM
+            p.kill()
+            p.join(timeout=1.0)
