@@ -22,7 +22,7 @@ def test_random_actions_never_raise(domain):
     rng = random.Random(7)
     for episode in range(40):
         env = Env(domain, task=domain.tasks[episode % 8].id, persona=domain.personas[episode % 16].id,
-                  seed=episode, user=lambda q, w: "ok", max_steps=100)
+                  seed=episode, user=lambda q, dialogue: "ok", max_steps=100)
         env.reset()
         for q in ("eggs", "pan", "milk", "bowl", "tomato", "bread", "mug", "coffee", "ice", "salt"):
             env.step(f"Look for {q}")

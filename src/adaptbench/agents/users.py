@@ -75,8 +75,10 @@ class OfflineUser:
         best = scored[0][0]
         return [p for s, _, p in scored[: self.max_answers] if s >= best - 1.0]
 
-    def answer(self, question: str, world=None) -> str:
-        """First-person answer to a question (same question, same answer)."""
+    def answer(self, question: str, dialogue: tuple = ()) -> str:
+        """First-person answer to a question (same question, same answer). `dialogue` is the
+        ((question, reply), ...) so far; this user answers from the question and its own persona, and
+        its memory of earlier answers, never from the simulator's state."""
         key = " ".join(sorted(words(question)))
         if key not in self._memory:
             self._memory[key] = self._answer(question)

@@ -279,6 +279,19 @@ class CompiledDomain:
                 out.setdefault(g, []).append(c.id)
         return {k: tuple(v) for k, v in out.items()}
 
+    @cached_property
+    def _derived(self) -> dict:
+        return {}
+
+    def derived(self, name: str, build):
+        """A table derived from this domain by a later layer (grammar index, parser, search index,
+        compiled rules ...): built once by `build(self)` and kept with the domain, so it lives exactly
+        as long as the domain does (no module caches keyed by `id()`). Not serialised."""
+        table = self._derived
+        if name not in table:
+            table[name] = build(self)
+        return table[name]
+
     def counts(self) -> dict:
         """How many of each kind of thing the domain holds."""
         kinds = [e.kind for e in self.entities]

@@ -89,7 +89,9 @@ def _form_text(form, level: str, verb_names: dict) -> str:
     return " ".join(parts)
 
 
-def _verb_terminals(index: GrammarIndex) -> tuple[dict, list]:
+def verb_terminals(index: GrammarIndex) -> tuple[dict, list]:
+    """(exclusion set -> terminal name, emitted lines) of the verb terminals: `VERB`, and one `VERB_n`
+    per distinct set of verbs a freeform form does not take."""
     names, lines = {frozenset(): "VERB"}, [f"VERB: {_verb_terminal(index.verbs)}"]
     excl = sorted({f.exclude_verbs for a in index.actions for f in a.forms if f.exclude_verbs}, key=sorted)
     for i, ex in enumerate(excl, 1):
@@ -113,7 +115,7 @@ def build_base(index: GrammarIndex, level: str = "observed", variant: str = "def
         raise ValueError(f"unknown level '{level}' (levels: {', '.join(LEVELS)})")
     if variant not in VARIANTS:
         raise ValueError(f"unknown variant '{variant}' (variants: {', '.join(VARIANTS)})")
-    verb_names, verb_lines = _verb_terminals(index)
+    verb_names, verb_lines = verb_terminals(index)
     actions = _wanted(index, variant)
     rules = {a.id: f"{a.id}: " + "\n    | ".join(_form_text(f, level, verb_names) for f in a.forms)
              for a in actions}

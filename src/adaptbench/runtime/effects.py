@@ -309,8 +309,14 @@ def _mark(world: World, node, params: dict, verb: str, where: str) -> None:
 def ask(world: World, params: dict, b: dict, ctx) -> str:
     """Ask the user a question; the reply is recorded on the step."""
     world.questions += 1
-    ctx["reply"] = ctx["user"](_arg(params, b, "question"), world) if ctx.get("user") else ""
+    ctx["reply"] = ctx["user"](_arg(params, b, "question"), dialogue(world)) if ctx.get("user") else ""
     return ""
+
+
+def dialogue(world: World) -> tuple:
+    """The questions asked so far and the replies they got: ((question, reply), ...). What a user
+    answers from (never the simulator's state)."""
+    return tuple((e.args.get("question", ""), e.reply) for e in world.trace if e.action == "ask" and e.ok)
 
 
 def done(world: World, params: dict, b: dict, ctx) -> None:

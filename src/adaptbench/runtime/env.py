@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
 
 from ..compiler.model import CompiledDomain
-from .actions import ActionFailed, bind, compile_check, compile_templates, match, resolve_holders
+from .actions import ActionFailed, bind, resolve_holders
 from .effects import PRIMITIVES
+from .index import RuntimeIndex, runtime_index
 from .observe import layout
 from .scene import sample_scene
 from .world import Event, World
@@ -27,20 +27,19 @@ class StepResult:
     reply: str = ""
 
 
-@lru_cache(maxsize=8)
-def _compiled(domain: CompiledDomain):
-    templates = compile_templates(domain)
-    checks = {a.id: [(compile_check(p.check, dict(a.slots)), p.fail) for p in a.preconditions]
-              for a in domain.actions}
-    return templates, checks
-
-
 class Env:
     """An ADAPT episode. `persona` is an id or a `Persona`; `user` answers questions: a callable
-    `(question, world) -> str` or an object with `.answer(question, world)`."""
+    `(question, dialogue) -> str` or an object with `.answer(question, dialogue)`, where `dialogue` is
+    the ((question, reply), ...) asked so far. `index` is the domain's runtime index (parser,
+    preconditions); by default the one kept with the domain.
+
+    Action text is read exactly as the grammar defines it (docs/grammar.md): canonical spelling, single
+    spaces. Cleaning up model output ("Action:" prefixes, trailing dots) is the agent side's job
+    (`adaptbench.agents.normalise`)."""
 
     def __init__(self, domain: CompiledDomain, task: str, persona: str | None = None, seed: int | None = 0,
-                 full_scene: bool = False, user=None, max_steps: int = MAX_STEPS):
+                 full_scene: bool = False, user=None, max_steps: int = MAX_STEPS,
+                 index: RuntimeIndex | None = None):
         if task not in domain.task:
             raise KeyError(f"unknown task '{task}' (tasks: {', '.join(domain.task)})")
         if isinstance(persona, str) and persona not in domain.persona:
@@ -51,7 +50,7 @@ class Env:
         self.scene = sample_scene(domain, seed, full_scene)
         self.user = getattr(user, "answer", user)
         self.max_steps = max_steps
-        self._templates, self._checks = _compiled(domain)
+        self.index = index if index is not None else runtime_index(domain)
         self.world: World = World(domain, self.scene)
 
     def reset(self) -> str:
@@ -69,7 +68,6 @@ class Env:
         w = self.world
         if self.done:
             return StepResult("The episode is over.", False, True)
-        text = _normalise(text)
         w.step += 1
         ctx = {"user": self.user, "reply": ""}
         try:
@@ -85,13 +83,13 @@ class Env:
         recent = [e.text for e in w.trace[-(REPEAT_WINDOW - 1):]]
         if recent.count(text) >= REPEAT_LIMIT - 1:
             raise ActionFailed(f"You have tried '{text}' too many times in a row; try something else")
-        hit = match(self._templates, text)
-        if hit is None:
+        parsed = self.index.parser.parse(text)
+        if parsed is None:
             raise ActionFailed(_unknown_action(self.domain, text))
-        action, raw = hit
-        b = bind(w, action, raw)
+        action = self.domain.action[parsed.action]
+        b = bind(w, action, parsed.args)
         resolve_holders(w, action, b)
-        for check, fail in self._checks[action.id]:
+        for check, fail in self.index.checks[action.id]:
             if not check(w, b):
                 raise ActionFailed(_fill(fail, b))
         obs = None
@@ -113,13 +111,6 @@ class Env:
         from .verify import evaluate
 
         return evaluate(self.domain, self.world, self.task, self.persona)
-
-
-def _normalise(text: str) -> str:
-    text = text.strip()
-    if text.lower().startswith("action:"):
-        text = text[7:].strip()
-    return text.rstrip(".").strip() if not text.endswith('"') else text
 
 
 def _fill(template: str, b: dict) -> str:
