@@ -22,7 +22,7 @@ from .sanity import check_location_cycles, check_templates
 
 __all__ = ["CompiledDomain", "Diagnostic", "SpecError", "compile_spec", "load_domain", "spec_hash"]
 
-COMPILER_VERSION = "2"
+COMPILER_VERSION = "3"  # bump when the compiled form or its cache format changes
 
 
 def _display(path: Path) -> str:
