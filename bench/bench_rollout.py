@@ -11,7 +11,7 @@ import time
 from pathlib import Path
 
 from adaptbench.compiler import load_domain
-from adaptbench.training.rollout import Job, rollout
+from adaptbench.harness.rollout import Job, rollout
 
 from .common import SPEC, report
 

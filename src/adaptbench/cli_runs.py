@@ -21,7 +21,7 @@ def _names(text: str, pool: dict, what: str) -> list:
 
 
 def _seeds(text: str) -> list:
-    from .training.rollout import parse_seeds
+    from .harness.rollout import parse_seeds
 
     try:
         return parse_seeds(text)
@@ -32,7 +32,7 @@ def _seeds(text: str) -> list:
 
 def _grid(args, domain) -> list:
     from .agents.scripted import AGENTS
-    from .training.rollout import Job
+    from .harness.rollout import Job
 
     agents = list(dict.fromkeys(a.strip() for a in args.agent.split(",") if a.strip()))
     bad = [a for a in agents if a not in AGENTS]
@@ -51,9 +51,9 @@ def _grid(args, domain) -> list:
 
 def _cmd_rollout(args) -> int:
     from .compiler import load_domain
-    from .training.results import ResultsError
-    from .training.rollout import RolloutResult, rollout
-    from .training.workers import Interrupted, WorkerDied
+    from .harness.results import ResultsError
+    from .harness.rollout import RolloutResult, rollout
+    from .harness.workers import Interrupted, WorkerDied
 
     jobs = _grid(args, load_domain(args.spec))
     res = RolloutResult()
@@ -82,7 +82,7 @@ def _summary(res, total: int, out: str) -> None:
 
 
 def _load_runs(args):
-    from .training.records import RunsError, load_runs, mixed_specs
+    from .harness.records import RunsError, load_runs, mixed_specs
 
     try:
         runs = load_runs(args.runs)
@@ -103,12 +103,12 @@ def _load_runs(args):
 
 def _tables(args, records: list) -> tuple:
     if args.by:
-        from .training import breakdown as b
+        from .harness import breakdown as b
 
         rows = b.breakdown(records, args.by)
         return (rows, b.render_text(rows, args.by), lambda: b.render_csv(rows, args.by),
                 lambda: b.render_markdown(rows, args.by))
-    from .training.evaluate import render_csv, render_markdown, render_text, table
+    from .harness.evaluate import render_csv, render_markdown, render_text, table
 
     rows = table(records)
     return rows, render_text(rows), lambda: render_csv(rows), lambda: render_markdown(rows)
@@ -130,8 +130,8 @@ def _cmd_eval(args) -> int:
     if none and not args.by:
         print(f"{none} episode(s) had no applicable preference and are left out of the satisfaction rates")
     if args.plot:
-        from .training.evaluate import table
-        from .training.plots import svg
+        from .harness.evaluate import table
+        from .harness.plots import svg
 
         _write_out(args.plot, svg(rows if not args.by else table(records), records))
     if args.csv:
@@ -142,8 +142,8 @@ def _cmd_eval(args) -> int:
 
 
 def _cmd_users_check(args) -> int:
-    from .agents.fidelity import check
     from .compiler import load_domain
+    from .qa.fidelity import check
 
     results, summary = check(load_domain(args.spec))
     misses = [r for r in results if not r.hit]
@@ -158,7 +158,7 @@ def _cmd_users_check(args) -> int:
 
 def _cmd_check_solvable(args) -> int:
     from .compiler import load_domain
-    from .training.solvable import unsolved
+    from .qa.solvable import unsolved
 
     domain = load_domain(args.spec)
     personas = _names(args.personas, domain.persona, "persona")

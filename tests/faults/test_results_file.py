@@ -12,8 +12,8 @@ import sys
 
 import pytest
 
-from adaptbench.training.results import ResultsError, ResultsFile, repair_tail
-from adaptbench.training.rollout import Job, rollout
+from adaptbench.harness.results import ResultsError, ResultsFile, repair_tail
+from adaptbench.harness.rollout import Job, rollout
 
 from .helpers import ROOT, SPEC, adapt, keys
 

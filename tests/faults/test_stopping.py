@@ -12,8 +12,8 @@ import time
 
 import pytest
 
-from adaptbench.training import rollout as rollout_mod
-from adaptbench.training.rollout import Job, rollout
+from adaptbench.harness import rollout as rollout_mod
+from adaptbench.harness.rollout import Job, rollout
 
 from .helpers import ROOT, keys, popen
 

@@ -1,1 +1,1 @@
-"""Rollouts, evaluation tables, reflection and training (heavy parts import torch lazily)."""
+"""Training: reflection data and Reflection-DPO and its baselines (heavy parts import torch lazily)."""

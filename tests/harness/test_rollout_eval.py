@@ -5,8 +5,8 @@ from __future__ import annotations
 import json
 
 from adaptbench.cli import main
-from adaptbench.training.evaluate import UNSEEN, mean_se, table
-from adaptbench.training.rollout import Job, done_keys, parse_seeds, rollout
+from adaptbench.harness.evaluate import UNSEEN, mean_se, table
+from adaptbench.harness.rollout import Job, done_keys, parse_seeds, rollout
 
 from ..conftest import SPEC
 
@@ -58,7 +58,7 @@ def test_cli_rollout_then_eval(tmp_path, domain, capsys):
 def test_eval_plot_is_valid_svg(tmp_path):
     import xml.etree.ElementTree as ET
 
-    from adaptbench.training.plots import svg
+    from adaptbench.harness.plots import svg
 
     recs = [{"agent": a, "persona": p, "satisfaction_rate": r, "questions": q}
             for a, r, q in (("never-ask", 0.3, 0), ("oracle", 0.9, 0)) for p in ("juan", "ron")]

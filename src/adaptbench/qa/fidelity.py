@@ -5,9 +5,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from ..agents.users import NO_LOCATION, OfflineUser
 from ..compiler.lint import applies_to
 from ..compiler.model import CompiledDomain, Preference
-from .users import NO_LOCATION, OfflineUser
 
 LOCATION_PROBES = ("Where is the milk?", "Where can I find the eggs?", "Which cabinet has the mugs?")
 
