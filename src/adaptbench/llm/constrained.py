@@ -1,0 +1,114 @@
+"""Grammar-constrained decoding for transformers, backed by llguidance.
+
+    lltok = ll_tokenizer(tokenizer, vocab_size)        # built once per (tokenizer, vocab), cached
+    proc = GrammarProcessor(lltok, [grammar_a, None, grammar_b], eos_id)
+    model.generate(..., logits_processor=LogitsProcessorList([proc]))
+
+One `LLMatcher` per batch row, each with its own Lark grammar (None: that row is unconstrained). Each
+step the processor feeds every running row's last token to its matcher, fills the rows' token bitmasks
+in parallel (`LLExecutor`) and masks the logits. The bitmask is applied with plain tensor operations
+(llguidance's helper is `torch.compile`d: ~30 s on the first CPU call). A row is finished once it
+emits EOS; its later (padding) tokens are not fed to the matcher.
+"""
+
+from __future__ import annotations
+
+import time
+import weakref
+
+import llguidance
+import llguidance.hf
+import torch
+from llguidance.torch import allocate_token_bitmask, fill_next_token_bitmask_par
+from transformers import LogitsProcessor
+
+_TOKENIZERS: dict = {}  # (id(hf tokenizer), vocab) -> (weakref, LLTokenizer)
+_EXECUTOR: list = []
+
+
+def ll_tokenizer(tokenizer, vocab_size: int | None = None) -> llguidance.LLTokenizer:
+    """The llguidance tokenizer of a Hugging Face fast tokenizer (with `vocab_size` the model's
+    logits width when it differs from the tokenizer's), built once per tokenizer and reused."""
+    key = (id(tokenizer), vocab_size)
+    hit = _TOKENIZERS.get(key)
+    if hit is not None and hit[0]() is tokenizer:
+        return hit[1]
+    lltok = llguidance.hf.from_tokenizer(tokenizer, n_vocab=vocab_size)
+    _TOKENIZERS[key] = (weakref.ref(tokenizer), lltok)
+    return lltok
+
+
+def executor() -> llguidance.LLExecutor:
+    """The process's llguidance executor (computes the rows' masks in parallel)."""
+    if not _EXECUTOR:
+        _EXECUTOR.append(llguidance.LLExecutor())
+    return _EXECUTOR[0]
+
+
+def grammar_error(lltok, grammar: str) -> str:
+    """Why llguidance rejects a Lark grammar ("" when it accepts it)."""
+    return llguidance.LLMatcher.validate_grammar(grammar, lltok)
+
+
+_BITS = torch.arange(32, dtype=torch.int32)
+
+
+def apply_bitmask(logits: torch.Tensor, bitmask: torch.Tensor, rows) -> None:
+    """Set to -inf the logits of tokens not allowed by `bitmask` (int32 words, bit i of word w = token
+    32 w + i) in the given rows, in place."""
+    if not rows:
+        return
+    idx = torch.tensor(rows, dtype=torch.long)
+    allowed = ((bitmask[idx].unsqueeze(-1) >> _BITS) & 1).bool().reshape(len(rows), -1)
+    vocab = logits.shape[1]
+    if allowed.shape[1] < vocab:
+        allowed = torch.nn.functional.pad(allowed, (0, vocab - allowed.shape[1]), value=False)
+    allowed = allowed[:, :vocab].to(logits.device)
+    sub = logits[idx.to(logits.device)]
+    logits[idx.to(logits.device)] = sub.masked_fill(~allowed, float("-inf"))
+
+
+class GrammarProcessor(LogitsProcessor):
+    """A transformers logits processor holding one llguidance matcher per batch row."""
+
+    def __init__(self, lltok, grammars, eos_id: int, vocab_size: int):
+        self.matchers = [None if g is None else llguidance.LLMatcher(lltok, g, log_level=0) for g in grammars]
+        for i, m in enumerate(self.matchers):
+            if m is not None and m.is_error():
+                raise ValueError(f"grammar of row {i} rejected by llguidance: {m.get_error()}")
+        self.eos_id = eos_id
+        self.bitmask = allocate_token_bitmask(len(grammars), vocab_size)
+        self.started = False
+        self.finished = [False] * len(grammars)
+        self.errors = [""] * len(grammars)
+        self.mask_seconds = 0.0
+        self.masked_steps = 0
+
+    def _consume(self, input_ids: torch.Tensor) -> None:
+        last = input_ids[:, -1].tolist()
+        for i, m in enumerate(self.matchers):
+            if self.finished[i]:
+                continue
+            if last[i] == self.eos_id:
+                self.finished[i] = True
+            if m is not None and not self.errors[i] and not m.consume_token(last[i]):
+                self.errors[i] = m.get_error() or "token rejected"
+
+    def __call__(self, input_ids: torch.Tensor, scores: torch.Tensor) -> torch.Tensor:
+        if self.started:
+            self._consume(input_ids)
+        self.started = True
+        t0 = time.perf_counter()
+        live = [(m, i) for i, m in enumerate(self.matchers)
+                if m is not None and not self.finished[i] and not self.errors[i]]
+        if live:
+            fill_next_token_bitmask_par(executor(), live, self.bitmask)
+            apply_bitmask(scores, self.bitmask, [i for _, i in live])
+            self.masked_steps += 1
+        self.mask_seconds += time.perf_counter() - t0
+        return scores
+
+    def accepted(self, row: int) -> bool:
+        """Whether row `row`'s matcher ended in an accepting state (True for unconstrained rows)."""
+        m = self.matchers[row]
+        return m is None or (not self.errors[row] and m.is_accepting())

@@ -1,0 +1,160 @@
+"""The `transformers` backend: a model from a local directory, on CPU or GPU, batched generation with a
+grammar per row (llguidance) and per-sequence-correct scoring under left padding.
+
+    backend = TransformersBackend("models/tiny", device="cpu", dtype="float32")
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import torch
+from transformers import (
+    AutoModelForCausalLM,
+    AutoTokenizer,
+    LogitsProcessorList,
+    StoppingCriteria,
+    StoppingCriteriaList,
+)
+
+from .backend import Backend, Completion, Scored, cut_at_stop
+from .constrained import GrammarProcessor, ll_tokenizer
+
+DTYPES = {"auto": "auto", "float32": torch.float32, "bfloat16": torch.bfloat16, "float16": torch.float16}
+
+
+class RowStops(StoppingCriteria):
+    """Ends each row at its own token limit or at the first of its stop strings."""
+
+    def __init__(self, tokenizer, start: int, limits, stops):
+        self.tokenizer, self.start, self.limits, self.stops = tokenizer, start, list(limits), list(stops)
+
+    def __call__(self, input_ids: torch.LongTensor, scores, **kwargs) -> torch.BoolTensor:
+        n = input_ids.shape[1] - self.start
+        done = []
+        for i, row in enumerate(input_ids):
+            stop = n >= self.limits[i]
+            if not stop and self.stops[i]:
+                tail = self.tokenizer.decode(row[self.start:], skip_special_tokens=True)
+                stop = any(s in tail for s in self.stops[i])
+            done.append(stop)
+        return torch.tensor(done, dtype=torch.bool, device=input_ids.device)
+
+
+def _left_pad(rows, pad_id: int):
+    width = max(len(r) for r in rows)
+    ids = torch.full((len(rows), width), pad_id, dtype=torch.long)
+    mask = torch.zeros((len(rows), width), dtype=torch.long)
+    for i, r in enumerate(rows):
+        if r:
+            ids[i, width - len(r):] = torch.tensor(r, dtype=torch.long)
+            mask[i, width - len(r):] = 1
+    return ids, mask
+
+
+def positions(mask: torch.Tensor) -> torch.Tensor:
+    """Position ids under left padding: 0 at each row's first real token."""
+    return (mask.cumsum(-1) - 1).clamp(min=0)
+
+
+class TransformersBackend(Backend):
+    """A Hugging Face causal LM from a local directory. On the CPU, torch uses `threads` threads (1 by
+    default: a small model gains nothing from more, and on a shared machine they contend)."""
+
+    name = "transformers"
+
+    def __init__(self, model: str, device: str = "cpu", dtype: str = "auto", batch_size: int = 16,
+                 temperature: float = 0.0, seed: int = 0, threads: int | None = 1):
+        if not Path(model).is_dir():
+            raise FileNotFoundError(f"--model {model}: not a directory (a model saved with save_pretrained; "
+                                    "`adapt model init --out DIR` builds the tiny one)")
+        if dtype not in DTYPES:
+            raise ValueError(f"unknown dtype '{dtype}' (choose from: {', '.join(DTYPES)})")
+        if threads and device == "cpu":
+            torch.set_num_threads(threads)  # small models on shared CPUs: more threads only contend
+        self.path, self.device, self.dtype = str(model), device, dtype
+        self.batch_size, self.temperature, self.seed = batch_size, temperature, seed
+        self.tokenizer = AutoTokenizer.from_pretrained(model, padding_side="left")
+        self.model = AutoModelForCausalLM.from_pretrained(model, dtype=DTYPES[dtype]).to(device).eval()
+        self.vocab = self.model.get_output_embeddings().weight.shape[0]
+        self.lltok = ll_tokenizer(self.tokenizer, self.vocab)
+        self.pad_id = self.tokenizer.pad_token_id if self.tokenizer.pad_token_id is not None \
+            else self.tokenizer.eos_token_id
+
+    def config(self) -> dict:
+        """The model directory, device, dtype and sampling temperature."""
+        return {"backend": self.name, "model": self.path, "device": self.device, "dtype": self.dtype,
+                "temperature": self.temperature}
+
+    def encode(self, text: str) -> list:
+        """Token ids of rendered text (no special tokens added: the chat template holds them)."""
+        return self.tokenizer(text, add_special_tokens=False)["input_ids"]
+
+    def generate(self, requests) -> list:
+        """Completions for the requests, `batch_size` rows per forward pass."""
+        out = []
+        for i in range(0, len(requests), self.batch_size):
+            out += self._batch(list(requests[i:i + self.batch_size]))
+        return out
+
+    @torch.no_grad()
+    def _batch(self, reqs: list) -> list:
+        t0 = time.perf_counter()
+        prompts = [self.encode(r.prompt) for r in reqs]
+        ids, mask = _left_pad(prompts, self.pad_id)
+        ids, mask = ids.to(self.device), mask.to(self.device)
+        eos = self.tokenizer.eos_token_id
+        proc = (GrammarProcessor(self.lltok, [r.grammar for r in reqs], eos, self.vocab)
+                if any(r.grammar is not None for r in reqs) else None)
+        stops = RowStops(self.tokenizer, ids.shape[1], [r.max_tokens for r in reqs], [r.stop for r in reqs])
+        sample = self.temperature > 0
+        if sample:
+            torch.manual_seed(self.seed)
+        gen = self.model.generate(
+            input_ids=ids, attention_mask=mask, max_new_tokens=max(r.max_tokens for r in reqs),
+            logits_processor=LogitsProcessorList([proc] if proc else []),
+            stopping_criteria=StoppingCriteriaList([stops]), do_sample=sample,
+            temperature=self.temperature if sample else None, top_p=None, top_k=None,
+            pad_token_id=self.pad_id, eos_token_id=eos)
+        seconds = time.perf_counter() - t0
+        return [self._completion(r, gen[i, ids.shape[1]:].tolist(), len(prompts[i]), proc, i, seconds, len(reqs))
+                for i, r in enumerate(reqs)]
+
+    def _completion(self, req, tokens: list, n_prompt: int, proc, row: int, seconds: float, batch: int):
+        eos = self.tokenizer.eos_token_id
+        if eos in tokens:
+            tokens = tokens[:tokens.index(eos) + 1]
+        tokens = [t for t in tokens if t != self.pad_id or t == eos]
+        text = cut_at_stop(self.tokenizer.decode(tokens, skip_special_tokens=True), req.stop)
+        accepted = None if req.grammar is None else proc.accepted(row)
+        stats = {"seconds": round(seconds, 4), "batch": batch}
+        if proc is not None:
+            stats["mask_seconds"] = round(proc.mask_seconds, 4)
+        return Completion(text, n_prompt, len(tokens), accepted, stats)
+
+    @torch.no_grad()
+    def score(self, prompt: str, continuations) -> list:
+        """Per-token log-probabilities of each continuation after `prompt` (one forward pass per
+        `batch_size` continuations; left padding with explicit position ids)."""
+        p = self.encode(prompt)
+        conts = [self.encode(c) for c in continuations]
+        out = []
+        for i in range(0, len(conts), self.batch_size):
+            chunk = conts[i:i + self.batch_size]
+            out += self._score(p, chunk)
+        return [Scored(c, lp) for c, lp in zip(continuations, out, strict=True)]
+
+    def _score(self, prompt: list, conts: list) -> list:
+        ids, mask = _left_pad([prompt + c for c in conts], self.pad_id)
+        keep = max(len(c) for c in conts) + 1
+        logits = self.model(input_ids=ids.to(self.device), attention_mask=mask.to(self.device),
+                            position_ids=positions(mask).to(self.device), logits_to_keep=keep).logits
+        logp = torch.log_softmax(logits.float(), dim=-1).cpu()  # positions T-keep .. T-1
+        out = []
+        for i, c in enumerate(conts):
+            n = len(c)
+            # the token at sequence position T-n+j is predicted at position T-n+j-1 = index keep-1-n+j
+            rows = logp[i, keep - 1 - n: keep - 1]
+            out.append(tuple(rows[torch.arange(n), torch.tensor(c, dtype=torch.long)].tolist()) if n else ())
+        return out
