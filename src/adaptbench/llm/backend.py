@@ -18,12 +18,14 @@ BACKENDS = ("transformers", "openai")
 @dataclass(frozen=True)
 class Request:
     """One generation: rendered prompt text, a Lark grammar (None: unconstrained), stop strings
-    (the completion is cut before the first), and a token limit."""
+    (the completion is cut before the first), a token limit, and a validator for what comes back
+    (`text -> bool`; used where the grammar may not be enforced, e.g. a server without grammars)."""
 
     prompt: str
     grammar: str | None = None
     stop: tuple = ()
     max_tokens: int = 64
+    validate: object = field(default=None, compare=False)
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,145 @@
+"""Language-model policies (`harness.policy.Policy`): planner, teacher, ReAct, never-ask and always-ask,
+each a prompt kind plus a grammar variant, batched over episodes through one backend.
+
+    policy = LLMPolicy(backend, domain, "planner")
+    decisions = policy.act_batch(views)        # one batched generation for every view
+
+Per episode the policy keeps the state's grammar (`grammars.StateGrammar`, updated incrementally from
+the view's `observed`) and the progress line after each step. The teacher also keeps the episode's
+env (`start`) to read the persona's preferences and, each step, those the verifier finds unmet.
+ReAct generates a one-line thought unconstrained (stopped at the newline), then the action under the
+grammar. Always-ask switches to the Ask-only grammar when none of the last N actions was a question.
+"""
+
+from __future__ import annotations
+
+import time
+
+from ..grammars import GrammarCache
+from ..harness.policy import Decision, Policy
+from ..runtime.index import runtime_index
+from .backend import Request
+from .chat import fit, render
+from .prompts import ACTION_PREFIX, ASK_EVERY, PromptBuilder
+
+AGENTS = {"planner": "planner", "teacher": "teacher", "react": "react", "never-ask-llm": "never_ask",
+          "always-ask-llm": "always_ask"}  # agent name -> prompt kind
+VARIANTS = {"never_ask": "never_ask"}  # prompt kind -> grammar variant (default otherwise)
+THOUGHT_TOKENS = 48
+
+
+class _Episode:
+    """What the policy remembers of one episode."""
+
+    def __init__(self, grammar):
+        self.grammar = grammar
+        self.made_after: list = []
+        self.env = None
+
+
+class LLMPolicy(Policy):
+    """A language-model agent of one kind (`AGENTS`) over a backend."""
+
+    def __init__(self, backend, domain, agent: str = "planner", level: str = "observed", budget: int | None = None,
+                 max_tokens: int = 48, every: int = ASK_EVERY, user: str = "the user"):
+        if agent not in AGENTS:
+            raise ValueError(f"unknown LLM agent '{agent}' (choose from: {', '.join(AGENTS)})")
+        self.name, self.kind = agent, AGENTS[agent]
+        self.backend, self.domain, self.level = backend, domain, level
+        self.max_tokens, self.every = max_tokens, every
+        self.builder = PromptBuilder(domain, self.kind, user=user, every=every)
+        self.index = runtime_index(domain)
+        self.grammars = GrammarCache(self.index.grammar, {t.id: t.text for t in domain.tasks})
+        limit = getattr(backend.tokenizer, "model_max_length", None) or 0
+        self.budget = budget if budget is not None else (limit - max_tokens - THOUGHT_TOKENS
+                                                         if 0 < limit < 1_000_000 else None)
+        self._episodes: dict = {}
+
+    def config(self) -> dict:
+        """Agent, prompt kind, grammar level, token limits and the backend's model."""
+        return {"agent": self.name, "prompt": self.kind, "level": self.level, "budget": self.budget,
+                "max_tokens": self.max_tokens, **({"every": self.every} if self.kind == "always_ask" else {}),
+                **self.backend.config()}
+
+    def start(self, episode: str, env) -> None:
+        """Forget any earlier episode of this id; the teacher keeps the env to read verdicts."""
+        self._episodes.pop(episode, None)
+        if self.kind == "teacher":
+            self._state(episode, None).env = env
+
+    def end(self, episode: str) -> None:
+        """Forget the episode."""
+        self._episodes.pop(episode, None)
+
+    def _state(self, episode: str, view) -> _Episode:
+        ep = self._episodes.get(episode)
+        if ep is None:
+            ep = self._episodes[episode] = _Episode(None)
+        if ep.grammar is None and view is not None:
+            ep.grammar = self.grammars.state(view.task, view.observed, self.level,
+                                             VARIANTS.get(self.kind, "default"))
+        return ep
+
+    def force_ask(self, view) -> bool:
+        """Always-ask: whether none of the last N actions (N taken) was a question."""
+        if self.kind != "always_ask" or len(view.history) < self.every:
+            return False
+        return not any(t.action.startswith("Ask ") for t in view.history[-self.every:])
+
+    def _knowledge(self, ep: _Episode) -> tuple:
+        if ep.env is None or ep.env.persona is None:
+            return (), ()
+        prefs = tuple(p.text for p in ep.env.persona.preferences)
+        unmet = tuple(v.text for v in ep.env.evaluate().verdicts if v.verdict == "violated")
+        return prefs, unmet
+
+    def _prepare(self, view) -> tuple:
+        ep = self._state(view.episode, view)
+        del ep.made_after[max(len(view.history) - 1, 0):]
+        if view.history:
+            ep.made_after.append(tuple(view.made))
+        force = self.force_ask(view)
+        prefs, unmet = self._knowledge(ep)
+        kw = {"preferences": prefs, "unmet": unmet, "force_ask": force, "made_after": tuple(ep.made_after)}
+        prompt = fit(self.backend.tokenizer, lambda omit: self.builder.prompt(view, omit=omit, **kw), self.budget)
+        text = ep.grammar.update(view.observed)
+        if force:
+            text = self.grammars.state(view.task, view.observed, self.level, "ask_only").text
+        return prompt, text, force
+
+    def act(self, view) -> Decision:
+        """The next action for one episode."""
+        return self.act_batch([view])[0]
+
+    def act_batch(self, views) -> list:
+        """The next action for every view: one batched generation (two for ReAct: thoughts, then
+        actions)."""
+        t0 = time.perf_counter()
+        prepared = [self._prepare(v) for v in views]
+        texts = [render(self.backend.tokenizer, p) for p, _, _ in prepared]
+        prep_seconds = time.perf_counter() - t0
+        thoughts = [""] * len(views)
+        if self.kind == "react":
+            todo = [i for i, (_, _, force) in enumerate(prepared) if not force]
+            outs = self.backend.generate([Request(texts[i], None, ("\n",), THOUGHT_TOKENS) for i in todo])
+            for i, out in zip(todo, outs, strict=True):
+                thoughts[i] = out.text.strip()
+                texts[i] += thoughts[i] + "\n" + ACTION_PREFIX
+        outs = self.backend.generate([Request(t, g, (), self.max_tokens, self._parses)
+                                      for t, (_, g, _) in zip(texts, prepared, strict=True)])
+        return [self._decision(p, out, force, thought, prep_seconds / len(views))
+                for (p, _, force), out, thought in zip(prepared, outs, thoughts, strict=True)]
+
+    def _parses(self, text: str) -> bool:
+        """Whether the simulator's parser reads an action text (validates a served model's output)."""
+        return self.index.parser.parse(text) is not None
+
+    def _decision(self, prompt, out, force: bool, thought: str, prep: float) -> Decision:
+        parsed = self.index.parser.parse(out.text)
+        stats = {"prompt_tokens": out.prompt_tokens, "omitted": prompt.omitted, "tokens": out.tokens,
+                 "level": self.level, "grammar": "ask_only" if force else VARIANTS.get(self.kind, "default"),
+                 "accepted": out.accepted, "parsed": parsed.action if parsed else None,
+                 "prepare_seconds": round(prep, 4), **out.stats}
+        if thought:
+            stats["thought"] = thought
+        return Decision(out.text, None, out.text, stats)
