@@ -33,11 +33,13 @@ def _seeds(text: str) -> list:
 def _grid(args, domain) -> list:
     from .agents.scripted import AGENTS
     from .harness.rollout import Job
+    from .llm.policies import AGENTS as LLM_AGENTS
 
     agents = list(dict.fromkeys(a.strip() for a in args.agent.split(",") if a.strip()))
-    bad = [a for a in agents if a not in AGENTS]
+    bad = [a for a in agents if a not in AGENTS and a not in LLM_AGENTS]
     if bad or not agents:
-        print(f"adapt: unknown agent {', '.join(bad) or '(none given)'} (choose from: {', '.join(AGENTS)})",
+        print(f"adapt: unknown agent {', '.join(bad) or '(none given)'} "
+              f"(choose from: {', '.join([*AGENTS, *LLM_AGENTS])})",
               file=sys.stderr)
         raise SystemExit(2)
     if args.workers < 1:
@@ -55,7 +57,12 @@ def _cmd_rollout(args) -> int:
     from .harness.rollout import RolloutResult, rollout
     from .harness.workers import Interrupted, WorkerDied
 
-    jobs = _grid(args, load_domain(args.spec))
+    domain = load_domain(args.spec)
+    jobs = _grid(args, domain)
+    from .llm.cli import is_llm, run_rollout
+
+    if is_llm(j.agent for j in jobs):
+        return run_rollout(args, jobs, domain)
     res = RolloutResult()
     resume = "re-run the same command to resume (finished episodes are kept and skipped)"
     try:
@@ -184,10 +191,15 @@ def add_commands(sub) -> None:
                        description="Run episodes and append one JSON line each to --out as they finish. "
                                    "Re-running the same command resumes: episodes already in the file are skipped.")
     _grid_options(p, "scene seeds, e.g. 0-3 or 0,4,9 (default 0-3)")
-    p.add_argument("--agent", required=True, help="oracle, never-ask, always-ask (comma-separated for several)")
+    p.add_argument("--agent", required=True, help="oracle, never-ask, always-ask; language-model agents (with --model): planner, "
+                   "teacher, react, never-ask-llm, always-ask-llm (comma-separated for several)")
     p.add_argument("--out", required=True, help="results file, e.g. runs/oracle.jsonl")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    from .llm import cli as llm_cli
+
+    llm_cli.add_rollout_options(p)
     p.set_defaults(func=_cmd_rollout)
+    llm_cli.add_commands(sub)
 
     p = sub.add_parser("eval", help="print the paper's Table 1 from rollout files",
                        description="Preference satisfaction rate and questions asked (mean ± standard error) "

@@ -1,0 +1,122 @@
+"""Command-line wiring of the language-model side: `adapt model init` and the LLM agents of
+`adapt rollout` (`--agent planner --model PATH`). Kept here so that `cli_runs` only dispatches."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from .policies import AGENTS
+
+
+def add_rollout_options(p) -> None:
+    """The model options of `adapt rollout` (used by the LLM agents only)."""
+    g = p.add_argument_group("language-model agents (planner, teacher, react, never-ask-llm, always-ask-llm)")
+    g.add_argument("--model", help="model directory (save_pretrained), or the served model's name with --backend openai")
+    g.add_argument("--backend", choices=["transformers", "openai"], default="transformers", help="default transformers")
+    g.add_argument("--url", default="http://localhost:8000/v1", help="OpenAI-compatible server (--backend openai)")
+    g.add_argument("--tokenizer", help="local tokenizer directory for --backend openai (default: --model)")
+    g.add_argument("--device", default="cpu", help="cpu, cuda, cuda:1 ... (default cpu)")
+    g.add_argument("--dtype", default="auto", choices=["auto", "float32", "bfloat16", "float16"])
+    g.add_argument("--batch", type=int, default=16, help="episodes advanced together (default 16)")
+    g.add_argument("--max-steps", type=int, help="step budget per episode (default 50; always-ask 50 x (1 + 1/N))")
+    g.add_argument("--user", choices=["offline", "llm"], default="offline", help="who answers questions")
+    g.add_argument("--user-model", help="model directory of the LLM user (default: --model)")
+
+
+def is_llm(agents) -> bool:
+    """Whether any of the agent names is a language-model agent."""
+    return any(a in AGENTS for a in agents)
+
+
+def _fail(msg: str, code: int = 2):
+    print(f"adapt: {msg}", file=sys.stderr)
+    raise SystemExit(code)
+
+
+def _backend(args, model: str):
+    try:
+        from .backend import make_backend
+    except ImportError as exc:  # pragma: no cover - the models extra is missing
+        _fail(f"{exc}; install the models extra: pip install torch==2.13.0 && pip install -e '.[models]'")
+    try:
+        if args.backend == "openai":
+            return make_backend("openai", url=args.url, model=model, tokenizer=args.tokenizer or model)
+        return make_backend("transformers", model=model, device=args.device, dtype=args.dtype)
+    except ImportError as exc:
+        _fail(f"{exc}; install the models extra: pip install torch==2.13.0 && pip install -e '.[models]'")
+    except (FileNotFoundError, OSError, ValueError) as exc:
+        _fail(str(exc))
+
+
+def run_rollout(args, jobs: list, domain) -> int:
+    """`adapt rollout` for LLM agents: one policy per agent, episodes batched."""
+    from ..agents.users import OfflineUser
+    from ..harness.results import ResultsError
+    from .policies import LLMPolicy
+    from .rollout import rollout_llm
+    from .user import LLMUser
+
+    if not args.model:
+        _fail("--model is required for language-model agents (a directory; `adapt model init --out DIR` "
+              "builds a tiny one)")
+    if args.batch < 1:
+        _fail(f"--batch must be at least 1 (got {args.batch})")
+    backend = _backend(args, args.model)
+    user_backend = backend if args.user == "offline" or not args.user_model or args.user_model == args.model \
+        else _backend(args, args.user_model)
+    if args.user == "llm":
+        def make_user(d, p, t):
+            return LLMUser(user_backend, d, p, t)
+        user_config = {"user": "llm", **{f"user_{k}": v for k, v in user_backend.config().items()}}
+    else:
+        def make_user(d, p, t):
+            return OfflineUser(d, p, t)
+        user_config = {"user": "offline"}
+    ran = errors = present = 0
+    for agent in dict.fromkeys(j.agent for j in jobs):
+        if agent not in AGENTS:
+            _fail(f"agent '{agent}' cannot be mixed with language-model agents in one command")
+        policy = LLMPolicy(backend, domain, agent)
+        try:
+            res = rollout_llm([j for j in jobs if j.agent == agent], Path(args.out), domain, policy, make_user,
+                              args.batch, not args.quiet, user_config, args.max_steps)
+        except ResultsError as exc:
+            _fail(str(exc), exc.code)
+        ran, errors, present = ran + res.ran, errors + res.errors, present + res.present
+    print(f"{ran} episode(s) run, {present} already in {args.out}")
+    return 1 if errors else 0
+
+
+def _cmd_model_init(args) -> int:
+    from ..compiler import load_domain
+
+    try:
+        from .tiny import init_tiny
+    except ImportError as exc:
+        _fail(f"{exc}; install the models extra: pip install torch==2.13.0 && pip install -e '.[models]'")
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        _fail(f"--out {out} exists and is not a directory")
+    path = init_tiny(load_domain(args.spec), out, seed=args.seed, vocab_size=args.vocab,
+                     hidden=args.hidden, layers=args.layers)
+    print(f"tiny model written to {path} (load it with --model {path})")
+    return 0
+
+
+def add_commands(sub) -> None:
+    """Register `adapt model init`."""
+    from ..cli_episode import add_spec_option
+
+    p = sub.add_parser("model", help="local models: `adapt model init --out DIR` builds the tiny test model")
+    msub = p.add_subparsers(dest="model_command", metavar="SUBCOMMAND")
+    q = msub.add_parser("init", help="train a tokenizer on the domain's text and save a small random Llama",
+                        description="No download: a byte-level BPE tokenizer trained on the domain's text (with a "
+                                    "chat template) and a randomly initialised small Llama, saved with save_pretrained.")
+    add_spec_option(q)
+    q.add_argument("--out", required=True, help="directory to write the model into")
+    q.add_argument("--seed", type=int, default=0)
+    q.add_argument("--vocab", type=int, default=4096, help="tokenizer vocabulary size (default 4096)")
+    q.add_argument("--hidden", type=int, default=64)
+    q.add_argument("--layers", type=int, default=2)
+    q.set_defaults(func=_cmd_model_init)
