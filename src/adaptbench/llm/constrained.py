@@ -68,16 +68,38 @@ def apply_bitmask(logits: torch.Tensor, bitmask: torch.Tensor, rows) -> None:
     logits[idx.to(logits.device)] = sub.masked_fill(~allowed, float("-inf"))
 
 
-class GrammarProcessor(LogitsProcessor):
-    """A transformers logits processor holding one llguidance matcher per batch row."""
+def closing_tokens(tokenizer, eos_id: int) -> torch.Tensor:
+    """Token ids that can end an action: EOS and every token holding a double quote (the end of a
+    quoted free-text question). Cached on the tokenizer object."""
+    hit = getattr(tokenizer, "_adapt_closing", None)
+    if hit is None:
+        vocab = tokenizer.get_vocab()
+        ids = [i for t, i in vocab.items() if '"' in tokenizer.convert_tokens_to_string([t])]
+        hit = torch.tensor(sorted({*ids, eos_id}), dtype=torch.long)
+        tokenizer._adapt_closing = hit
+    return hit
 
-    def __init__(self, lltok, grammars, eos_id: int, vocab_size: int):
+
+class GrammarProcessor(LogitsProcessor):
+    """A transformers logits processor holding one llguidance matcher per batch row.
+
+    Free text is bounded by the token limit, not by the grammar (docs/grammar.md), so a row about to
+    reach its limit (`limits`) is steered to close: in its last `reserve` steps only tokens that end
+    an action (`closing`: EOS, a closing quote) are kept when the grammar allows any of them. Every
+    completion then parses, however long the model would have rambled."""
+
+    def __init__(self, lltok, grammars, eos_id: int, vocab_size: int, limits=None, closing=None,
+                 reserve: int = 2):
         self.matchers = [None if g is None else llguidance.LLMatcher(lltok, g, log_level=0) for g in grammars]
         for i, m in enumerate(self.matchers):
             if m is not None and m.is_error():
                 raise ValueError(f"grammar of row {i} rejected by llguidance: {m.get_error()}")
         self.eos_id = eos_id
         self.bitmask = allocate_token_bitmask(len(grammars), vocab_size)
+        self.limits = list(limits) if limits is not None else [None] * len(grammars)
+        self.closing, self.reserve = closing, reserve
+        self.steps = 0
+        self.consumed = [0] * len(grammars)
         self.started = False
         self.finished = [False] * len(grammars)
         self.errors = [""] * len(grammars)
@@ -86,13 +108,28 @@ class GrammarProcessor(LogitsProcessor):
 
     def _consume(self, input_ids: torch.Tensor) -> None:
         last = input_ids[:, -1].tolist()
-        for i, m in enumerate(self.matchers):
+        for i in range(len(self.matchers)):
             if self.finished[i]:
                 continue
             if last[i] == self.eos_id:
                 self.finished[i] = True
-            if m is not None and not self.errors[i] and not m.consume_token(last[i]):
-                self.errors[i] = m.get_error() or "token rejected"
+            self._feed(i, last[i])
+
+    def _feed(self, i: int, token: int) -> None:
+        m = self.matchers[i]
+        self.consumed[i] += 1
+        if m is not None and not self.errors[i] and not m.consume_token(token):
+            self.errors[i] = m.get_error() or "token rejected"
+
+    def finish(self, row: int, tokens: list) -> None:
+        """Feed a row's generated tokens the processor has not seen (the last one, when generation
+        stopped at the limit) so that `accepted` judges the whole completion."""
+        for t in tokens[self.consumed[row]:]:
+            if self.finished[row]:
+                break
+            if t == self.eos_id:
+                self.finished[row] = True
+            self._feed(row, t)
 
     def __call__(self, input_ids: torch.Tensor, scores: torch.Tensor) -> torch.Tensor:
         if self.started:
@@ -104,9 +141,25 @@ class GrammarProcessor(LogitsProcessor):
         if live:
             fill_next_token_bitmask_par(executor(), live, self.bitmask)
             apply_bitmask(scores, self.bitmask, [i for _, i in live])
+            self._close([i for _, i in live], scores)
             self.masked_steps += 1
+        self.steps += 1
         self.mask_seconds += time.perf_counter() - t0
         return scores
+
+    def _close(self, rows, scores: torch.Tensor) -> None:
+        if self.closing is None:
+            return
+        for i in rows:
+            limit = self.limits[i]
+            if limit is None or limit - self.steps > self.reserve:
+                continue
+            keep = self.closing.to(scores.device)
+            allowed = scores[i, keep] > float("-inf")
+            if bool(allowed.any()):
+                row = torch.full_like(scores[i], float("-inf"))
+                row[keep] = scores[i, keep]
+                scores[i] = row
 
     def accepted(self, row: int) -> bool:
         """Whether row `row`'s matcher ended in an accepting state (True for unconstrained rows)."""

@@ -19,7 +19,7 @@ from transformers import (
 )
 
 from .backend import Backend, Completion, Scored, cut_at_stop
-from .constrained import GrammarProcessor, ll_tokenizer
+from .constrained import GrammarProcessor, closing_tokens, ll_tokenizer
 
 DTYPES = {"auto": "auto", "float32": torch.float32, "bfloat16": torch.bfloat16, "float16": torch.float16}
 
@@ -105,7 +105,8 @@ class TransformersBackend(Backend):
         ids, mask = _left_pad(prompts, self.pad_id)
         ids, mask = ids.to(self.device), mask.to(self.device)
         eos = self.tokenizer.eos_token_id
-        proc = (GrammarProcessor(self.lltok, [r.grammar for r in reqs], eos, self.vocab)
+        proc = (GrammarProcessor(self.lltok, [r.grammar for r in reqs], eos, self.vocab,
+                                 [r.max_tokens for r in reqs], closing_tokens(self.tokenizer, eos))
                 if any(r.grammar is not None for r in reqs) else None)
         stops = RowStops(self.tokenizer, ids.shape[1], [r.max_tokens for r in reqs], [r.stop for r in reqs])
         sample = self.temperature > 0
@@ -126,6 +127,8 @@ class TransformersBackend(Backend):
         if eos in tokens:
             tokens = tokens[:tokens.index(eos) + 1]
         tokens = [t for t in tokens if t != self.pad_id or t == eos]
+        if proc is not None and req.grammar is not None:
+            proc.finish(row, tokens)
         text = cut_at_stop(self.tokenizer.decode(tokens, skip_special_tokens=True), req.stop)
         accepted = None if req.grammar is None else proc.accepted(row)
         stats = {"seconds": round(seconds, 4), "batch": batch}
