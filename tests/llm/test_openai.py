@@ -1,0 +1,70 @@
+"""The `openai` backend against a local OpenAI-compatible server over the tiny model (`fake_server.py`:
+`transformers serve` needs the serving extra and takes neither token-id prompts nor vLLM's grammar
+field). Skipped, saying why, without the `models` extra."""
+
+from __future__ import annotations
+
+import pytest
+
+from adaptbench.grammars import GrammarCache
+from adaptbench.llm.chat import render
+from adaptbench.llm.prompts import PromptBuilder
+from adaptbench.runtime.index import runtime_index
+
+from .conftest import SKIP_MODELS, play
+
+pytestmark = SKIP_MODELS
+
+
+@pytest.fixture(params=[True, False], ids=["enforcing", "ignoring-grammars"])
+def server(request, backend):
+    from .fake_server import serve
+
+    srv, url = serve(backend, enforce=request.param)
+    yield url, request.param
+    srv.shutdown()
+
+
+def _request(domain, tokenizer, parser):
+    from adaptbench.llm.backend import Request
+
+    ep, _ = play(domain)
+    text = render(tokenizer, PromptBuilder(domain, "planner").prompt(ep.view()))
+    grammar = GrammarCache(runtime_index(domain).grammar).state("eggs", ep.env.observed()).text
+    return Request(text, grammar, (), 24, lambda t: parser.parse(t) is not None)
+
+
+def test_generate_validates_and_retries_once(domain, tiny, server):
+    from adaptbench.llm.openai_backend import OpenAIBackend
+
+    url, enforce = server
+    parser = runtime_index(domain).parser
+    ob = OpenAIBackend(url, "tiny", str(tiny))
+    req = _request(domain, ob.tokenizer, parser)
+    outs = ob.generate([req, req])
+    assert len(outs) == 2
+    if enforce:
+        assert all(o.accepted and parser.parse(o.text) for o in outs) and ob.retries == 0
+        assert outs[0].prompt_tokens == len(ob.encode(req.prompt))
+    else:  # the random model unconstrained never writes an action: asked again once, then reported
+        assert ob.retries == 2 and all(o.accepted is False and o.stats["tries"] == 2 for o in outs)
+
+
+def test_score_matches_the_transformers_backend(domain, tiny, backend, server):
+    from adaptbench.llm.openai_backend import OpenAIBackend
+
+    url, _ = server
+    ob = OpenAIBackend(url, "tiny", str(tiny))
+    prompt = _request(domain, ob.tokenizer, runtime_index(domain).parser).prompt
+    conts = ["Look for eggs", 'Ask "Scrambled?"']
+    for a, b in zip(ob.score(prompt, conts), backend.score(prompt, conts), strict=True):
+        assert a.logprobs == pytest.approx(b.logprobs, abs=2e-4)
+
+
+def test_unreachable_server_is_a_clear_error(tiny):
+    from adaptbench.llm.backend import Request
+    from adaptbench.llm.openai_backend import OpenAIBackend, ServerError
+
+    ob = OpenAIBackend("http://127.0.0.1:9/v1", "tiny", str(tiny), timeout=2)
+    with pytest.raises(ServerError, match="127.0.0.1:9"):
+        ob.generate([Request("<|bos|>x", None, (), 2)])
