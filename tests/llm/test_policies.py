@@ -1,0 +1,108 @@
+"""LLM policies, the LLM user and `adapt rollout --model` at smoke scale on the tiny model (CPU)."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from adaptbench.harness.rollout import Job
+from adaptbench.llm.policies import AGENTS
+
+from .conftest import SKIP_MODELS, play
+
+pytestmark = SKIP_MODELS
+
+
+def _offline(d, p, t):
+    from adaptbench.agents.users import OfflineUser
+
+    return OfflineUser(d, p, t)
+
+
+@pytest.mark.parametrize("agent", list(AGENTS))
+def test_each_agent_runs_batched_and_every_action_parses(domain, backend, agent):
+    from adaptbench.llm.policies import LLMPolicy
+    from adaptbench.llm.rollout import run_batched
+
+    policy = LLMPolicy(backend, domain, agent, max_tokens=16, every=2)
+    jobs = [Job(agent, "juan", "eggs", 0), Job(agent, "miranda", "cereal", 1)]
+    recs = list(run_batched(jobs, domain, policy, _offline, batch=2, steps=3))
+    assert sorted((r["persona"], r["n_steps"]) for r in recs) == [("juan", 3), ("miranda", 3)]
+    for r in recs:
+        assert r["agent_config"]["agent"] == agent and r["agent_config"]["prompt"] == AGENTS[agent]
+        for s in r["steps"]:
+            st = s["stats"]
+            assert st["parsed"] is not None and st["accepted"], s
+            assert st["batch"] == 2 and st["prompt_tokens"] > 500 and 0 < st["tokens"] <= 16
+            if agent == "never-ask-llm":
+                assert st["parsed"] != "ask"
+            if agent == "always-ask-llm" and st["grammar"] == "ask_only":
+                assert st["parsed"] == "ask"
+        if agent == "always-ask-llm":
+            acts = [s["action"] for s in r["steps"]]
+            assert any(a.startswith("Ask ") for a in acts[:2]) or acts[2].startswith("Ask ")
+
+
+def test_teacher_prompt_holds_preferences_and_unmet_ones(domain, backend):
+    from adaptbench.llm.policies import LLMPolicy
+
+    ep, _ = play(domain, agent="teacher")
+    policy = LLMPolicy(backend, domain, "teacher")
+    policy.start(ep.id, ep.env)
+    prompt, _grammar, force = policy._prepare(ep.view())
+    assert not force
+    assert "Add whole milk while preparing eggs" in prompt.messages[0]["content"]
+    assert "Preferences not yet met:\n- Prefer hearty scrambled eggs" in prompt.messages[-1]["content"]
+    planner = LLMPolicy(backend, domain, "planner")
+    assert "whole milk" not in planner._prepare(ep.view())[0].messages[0]["content"]
+
+
+def test_always_ask_switches_to_the_ask_only_grammar(domain, backend):
+    from adaptbench.llm.policies import LLMPolicy
+
+    policy = LLMPolicy(backend, domain, "always-ask-llm", every=2)
+    ep, _ = play(domain, steps=("Look for eggs", "Open fridge_0"))
+    prompt, grammar, force = policy._prepare(ep.view())
+    assert force and "action: ask" in grammar and prompt.prefix == "Action: "
+    assert "your next action must be a question" in prompt.messages[-1]["content"]
+    ep, _ = play(domain, steps=("Look for eggs", 'Ask "Eggs?"'))
+    assert not policy._prepare(ep.view())[2]
+
+
+def test_llm_user_answers_in_one_line(domain, backend):
+    from adaptbench.llm.user import LLMUser
+
+    ep, _ = play(domain)
+    user = LLMUser(backend, domain, domain.persona["juan"], domain.task["eggs"], max_tokens=12).bind(ep.env)
+    a = user.answer("How do you like your eggs?")
+    assert a and "\n" not in a
+    assert user.answer("How do you like your eggs?") == a  # greedy: same state, same answer
+    prompt = user.prompt("Milk?", (("Eggs?", "Scrambled."),))
+    assert "- fridge_0 (fridge)" in prompt.messages[0]["content"]
+    assert [m["role"] for m in prompt.messages] == ["system", "user", "assistant", "user"]
+
+
+def test_cli_rollout_with_llm_user_then_eval(tiny, tmp_path, capsys):
+    from adaptbench.cli import main
+
+    out = tmp_path / "planner.jsonl"
+    argv = ["rollout", "--agent", "planner", "--model", str(tiny), "--personas", "juan", "--tasks", "eggs",
+            "--seeds", "0", "--max-steps", "2", "--user", "llm", "--out", str(out), "--quiet"]
+    assert main(argv) == 0
+    rec = json.loads(out.read_text())
+    assert rec["agent_config"]["user"] == "llm" and rec["n_steps"] == 2 and "satisfaction_rate" in rec
+    assert {"prompt_tokens", "tokens", "level", "parsed", "seconds"} <= set(rec["steps"][0]["stats"])
+    assert main(argv) == 0 and "0 episode(s) run, 1 already" in capsys.readouterr().out  # resumed
+    assert main(["eval", str(out)]) == 0
+
+
+def test_cli_errors_are_clear(tmp_path, capsys):
+    from adaptbench.cli import main
+
+    base = ["rollout", "--agent", "planner", "--personas", "juan", "--tasks", "eggs", "--seeds", "0",
+            "--out", str(tmp_path / "x.jsonl")]
+    assert main(base) == 2 and "--model is required" in capsys.readouterr().err
+    assert main([*base, "--model", str(tmp_path / "nope")]) == 2
+    assert "not a directory" in capsys.readouterr().err
+    assert main([*base[:2], "planner,oracle", *base[3:], "--model", str(tmp_path)]) == 2
