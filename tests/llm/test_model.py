@@ -61,15 +61,15 @@ def test_every_constrained_completion_parses(domain, tiny):
     parser = runtime_index(domain).parser
     rows = _grammars(domain, 12, rng)
     prompt = render(backend.tokenizer, PromptBuilder(domain, "planner").prompt(play(domain, steps=())[0].view()))
-    reqs = [Request(prompt, g, (), 40) for _, g in rows] * 8
+    reqs = [Request(prompt, g, (), 40) for _, g in rows] * 4
     outs = backend.generate(reqs)
-    assert len(outs) == 96
-    for (variant, _), out in zip(rows * 8, outs, strict=True):
+    assert len(outs) == 48
+    for (variant, _), out in zip(rows * 4, outs, strict=True):
         parsed = parser.parse(out.text)
         assert parsed is not None, out.text
         assert out.accepted
         assert (parsed.action == "ask") == (variant == "ask_only") or variant == "default", (variant, out.text)
-    assert len({o.text for o in outs}) > 20  # sampling explores the grammar
+    assert len({o.text for o in outs}) > 12  # sampling explores the grammar
 
 
 @pytest.mark.slow
