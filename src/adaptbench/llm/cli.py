@@ -91,15 +91,16 @@ def run_rollout(args, jobs: list, domain) -> int:
 def _cmd_model_init(args) -> int:
     from ..compiler import load_domain
 
-    try:
-        from .tiny import init_tiny
-    except ImportError as exc:
-        _fail(f"{exc}; install the models extra: pip install torch==2.13.0 && pip install -e '.[models]'")
+    from .tiny import init_tiny
+
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         _fail(f"--out {out} exists and is not a directory")
-    path = init_tiny(load_domain(args.spec), out, seed=args.seed, vocab_size=args.vocab,
-                     hidden=args.hidden, layers=args.layers)
+    try:
+        path = init_tiny(load_domain(args.spec), out, seed=args.seed, vocab_size=args.vocab,
+                         hidden=args.hidden, layers=args.layers)
+    except ImportError as exc:
+        _fail(f"{exc}; install the models extra: pip install torch==2.13.0 && pip install -e '.[models]'")
     print(f"tiny model written to {path} (load it with --model {path})")
     return 0
 
