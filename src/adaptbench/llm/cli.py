@@ -90,7 +90,6 @@ def run_rollout(args, jobs: list, domain) -> int:
 
 def _cmd_model_init(args) -> int:
     from ..compiler import load_domain
-
     from .tiny import init_tiny
 
     out = Path(args.out)
