@@ -168,6 +168,10 @@ def _cmd_users_check(args) -> int:
     from .compiler import load_domain
     from .qa.fidelity import check
 
+    if getattr(args, "llm", False):
+        from .llm.cli import users_check_llm
+
+        return users_check_llm(args)
     results, summary = check(load_domain(args.spec))
     misses = [r for r in results if not r.hit]
     if args.verbose:
@@ -239,6 +243,7 @@ def add_commands(sub) -> None:
     add_spec_option(q)
     q.add_argument("--min-rate", type=float, default=0.95, help="fail below this hit rate (default 0.95)")
     q.add_argument("--verbose", "-v", action="store_true", help="list the probes that missed")
+    llm_cli.add_users_check_options(q)
     q.set_defaults(func=_cmd_users_check)
 
     p = sub.add_parser("check-solvable", help="report applicable preferences the oracle cannot satisfy",

@@ -88,6 +88,39 @@ def run_rollout(args, jobs: list, domain) -> int:
     return 1 if errors else 0
 
 
+def add_users_check_options(q) -> None:
+    """`adapt users check --llm --user-model PATH`: audit the LLM user instead of the offline one."""
+    q.add_argument("--llm", action="store_true", help="audit the language-model user (with --user-model)")
+    q.add_argument("--user-model", help="model directory of the LLM user")
+    q.add_argument("--personas", default="all", help="--llm: 'all' or comma-separated ids")
+    q.add_argument("--max-probes", type=int, help="--llm: probes per preference (default all)")
+    q.add_argument("--device", default="cpu")
+    q.add_argument("--dtype", default="auto", choices=["auto", "float32", "bfloat16", "float16"])
+    q.set_defaults(backend="transformers")
+
+
+def users_check_llm(args) -> int:
+    """Audit the LLM user: hit rate, consistency, location leaks (exit 1 below --min-rate or on a leak)."""
+    from ..compiler import load_domain
+    from .audit import audit
+
+    if not args.user_model:
+        _fail("--llm needs --user-model DIR")
+    domain = load_domain(args.spec)
+    personas = list(domain.persona) if args.personas == "all" else [p.strip() for p in args.personas.split(",")]
+    bad = [p for p in personas if p not in domain.persona]
+    if bad:
+        _fail(f"unknown persona {', '.join(bad)} (choose from: {', '.join(domain.persona)}, or all)")
+    probes, s = audit(domain, _backend(args, args.user_model), personas, args.max_probes)
+    if args.verbose:
+        for p in probes:
+            if not p.hit:
+                print(f"MISS {p.persona}.{p.preference}: {p.question!r} -> {p.answer!r}")
+    print(f"LLM user: {s['hits']}/{s['probes']} probes answered naming the preference ({s['hit_rate']:.1%}); "
+          f"consistent answers: {'yes' if s['consistent'] else 'NO'}; location leaks: {s['location_leaks']}")
+    return 0 if s["hit_rate"] >= args.min_rate and s["location_leaks"] == 0 else 1
+
+
 def _cmd_model_init(args) -> int:
     from ..compiler import load_domain
     from .tiny import init_tiny
