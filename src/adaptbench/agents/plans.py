@@ -52,12 +52,14 @@ def all_recipes(domain: CompiledDomain, task: Task) -> list:
 
 
 def _order(domain: CompiledDomain, recipes: list, order: str) -> list:
-    def kind(r: Recipe) -> str:
-        return domain.component[r.component].kind if r.component else "side"
+    drinks = domain.engine.drink_kinds
+
+    def drink(r: Recipe) -> bool:
+        return r.component is not None and domain.component[r.component].kind in drinks
     if order == "beverages_first":
-        return sorted(recipes, key=lambda r: kind(r) != "beverage")
+        return sorted(recipes, key=lambda r: not drink(r))
     if order == "food_first":
-        return sorted(recipes, key=lambda r: kind(r) == "beverage")
+        return sorted(recipes, key=drink)
     return recipes
 
 

@@ -22,7 +22,7 @@ from .sanity import check_location_cycles, check_templates
 
 __all__ = ["CompiledDomain", "Diagnostic", "SpecError", "compile_spec", "load_domain", "spec_hash"]
 
-COMPILER_VERSION = "3"  # bump when the compiled form or its cache format changes
+COMPILER_VERSION = "4"  # bump when the compiled form or its cache format changes
 
 
 def _display(path: Path) -> str:
@@ -51,15 +51,20 @@ def compile_spec(spec_dirs) -> tuple[CompiledDomain | None, list[Diagnostic]]:
     for d in dirs:
         if not d.is_dir():
             draft.diags.append(Diagnostic(str(d), 1, 1, "S003", "spec directory not found"))
-    for kind, path in spec_files(dirs):
+    files = spec_files(dirs)
+    if dirs and all(d.is_dir() for d in dirs) and not any(kind == "engine" for kind, _ in files):
+        draft.diags.append(Diagnostic(_display(dirs[0] / "engine.yaml"), 1, 1, "D501",
+                                      "missing spec/engine.yaml: the engine vocabulary (dining places, component "
+                                      "kinds, states ...) must be declared (see docs/authoring.md)"))
+    for kind, path in files:
         doc, diags = load_file(path, _display(path))
         draft.diags.extend(diags)
-        if doc is None:
-            continue
-        schema_diags = validate_schema(doc, kind)
+        schema_diags = validate_schema(doc, kind) if doc is not None else []
         draft.diags.extend(schema_diags)
-        if not schema_diags:
+        if doc is not None and not schema_diags:
             ADDERS[kind](draft, doc)
+        elif kind == "persona":  # a persona that did not load is still not "unknown" to the splits
+            draft.broken.add(path.stem)
     if not check_location_cycles(draft):  # later passes walk holder chains
         return None, sorted(draft.diags)
     check_all(draft)
@@ -98,6 +103,8 @@ def _freeze(draft: Draft, digest: str) -> CompiledDomain:
         recipes=_unique(draft.recipes),
         planning=tuple(draft.planning),
         processes=tuple((g, tuple(vs)) for g, vs in draft.processes.items()),
+        engine=draft.engine,
+        splits=tuple(sorted(draft.splits, key=lambda s: s.id)),
     )
 
 

@@ -11,6 +11,7 @@ from pathlib import Path
 from . import ast as A
 from .build import Draft
 from .diagnostics import did_you_mean
+from .engine import check_effect_values, check_engine, check_persona_numbers, check_splits
 from .model import Where
 
 SLOT_TYPES = ("entity", "content", "thing", "query", "question", "result", "verb")
@@ -45,7 +46,8 @@ class Names:
         self.classes = set(draft.categories) | set(draft.tags)
         self.classes |= {e.id for e in draft.entities} | {s.id for s in draft.substances}
         self.components = {c.id for c in draft.components}
-        self.groups = {"all", "food", "sweet", "savory", "beverage"} | {g for c in draft.components for g in c.groups}
+        kinds = set(draft.engine.kinds) if draft.engine else set()
+        self.groups = {"all", "food"} | kinds | {g for c in draft.components for g in c.groups}
         self.styles = {s.id for s in draft.styles}
         self.verb_groups = set(draft.verb_groups) | set(draft.processes)
 
@@ -59,6 +61,10 @@ def check_all(draft: Draft) -> None:
     check_tasks(draft, names)
     check_personas(draft, names)
     check_recipes(draft, names)
+    check_engine(draft)
+    check_effect_values(draft)
+    check_splits(draft)
+    check_persona_numbers(draft)
 
 
 # ---------------------------------------------------------------- objects
@@ -152,8 +158,9 @@ def _check_effects(draft: Draft, a, slots: dict) -> None:
 
 
 def check_verbs(draft: Draft) -> None:
-    """A verb belongs to one group only; process groups name declared verbs (or the fixed mix/cook/chop)."""
-    declared = {v for vs in draft.verb_groups.values() for v in vs} | {"mix", "cook", "chop"}
+    """A verb belongs to one group only; process groups name declared verbs (or the engine's action verbs)."""
+    action_verbs = set(draft.engine.action_verbs) if draft.engine else set()
+    declared = {v for vs in draft.verb_groups.values() for v in vs} | action_verbs
     for group, verbs in draft.processes.items():
         for v in verbs:
             if v not in declared:

@@ -164,14 +164,11 @@ def _natural(eid: str):
 
 
 def set_state(world: World, params: dict, b: dict, ctx) -> None:
-    """Open/close or switch an entity on/off."""
+    """Set a state of an entity (open, on ...), clearing its opposite (spec/engine.yaml `states`)."""
     eid, state = _ent(params, b, "target"), params["state"]
     states = world.state.setdefault(eid, set())
-    flip = {"open": "closed", "closed": "open", "on": "off", "off": "on"}
-    states.discard(flip[state])
+    states.discard(world.domain.engine.opposite(state))
     states.add(state)
-    if state == "off":
-        states.discard("on")
 
 
 def took_part(world: World, node, vessels) -> None:
