@@ -9,6 +9,7 @@ one is not in the house.
 from __future__ import annotations
 
 import re
+import sys
 
 from ..compiler.model import CompiledDomain, Recipe, Task
 from ..runtime.env import Env
@@ -42,6 +43,26 @@ def task_recipes(domain: CompiledDomain, task: Task, assignment: dict | None = N
             recipes.append(r)
     recipes += [r for r in domain.recipes if r.optional]
     return _order(domain, recipes, (assignment or {}).get(f"{PLAN}.serve_order", "as_listed"))
+
+
+def missing_recipes(domain: CompiledDomain, task: Task) -> tuple:
+    """The task's components that no recipe makes (the compiler warns about them, D410)."""
+    made = {r.component for r in domain.recipes if r.component and not r.optional}
+    return tuple(c for c in task.components if c not in made)
+
+
+def notes(domain: CompiledDomain, task: Task) -> list:
+    """What a scripted agent cannot do on this task, in words (`no recipe for component X`)."""
+    return [f"no recipe for component {c}: the scripted agents skip it" for c in missing_recipes(domain, task)]
+
+
+def _say_missing(domain: CompiledDomain, task: Task) -> None:
+    """Print each `no recipe for component X` once per domain to stderr."""
+    said = domain.derived("plans.said_missing", lambda d: set())
+    for line in notes(domain, task):
+        if line not in said:
+            said.add(line)
+            print(f"adapt: warning: {line} (task {task.id})", file=sys.stderr)
 
 
 def all_recipes(domain: CompiledDomain, task: Task) -> list:
@@ -259,6 +280,7 @@ class Executor:
 
 def execute(env: Env, assignment: dict) -> None:
     """Run a whole plan: each recipe in order, served as it is finished, then Declare Done."""
+    _say_missing(env.domain, env.task)
     ex = Executor(env, assignment)
     for recipe in task_recipes(env.domain, env.task, assignment):
         ex.run_recipe(recipe)

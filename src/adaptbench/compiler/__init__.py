@@ -65,8 +65,8 @@ def compile_spec(spec_dirs) -> tuple[CompiledDomain | None, list[Diagnostic]]:
             ADDERS[kind](draft, doc)
         elif kind == "persona":  # a persona that did not load is still not "unknown" to the splits
             draft.broken.add(path.stem)
-    if not check_location_cycles(draft):  # later passes walk holder chains
-        return None, sorted(draft.diags)
+    if not check_location_cycles(draft) or draft.engine is None:  # later passes walk holder chains and
+        return None, sorted(draft.diags)                             # name the engine's words
     check_all(draft)
     check_templates(draft)
     if any(d.severity == "error" for d in draft.diags):

@@ -219,6 +219,25 @@ def add_recipes(draft: Draft, doc: LoadedDoc) -> None:
         draft.claim("recipe", r["id"], draft.at(doc, ("recipes", i, "id")))
         for j, c in enumerate(r["choices"]):
             draft.where[("choice", r["id"], c["id"])] = draft.at(doc, ("recipes", i, "choices", j, "id"))
+            for k in range(len(c["options"])):
+                draft.where[("option", r["id"], c["id"], k)] = draft.at(doc, ("recipes", i, "choices", j, "options", k))
+        marks: list = []
+        _step_marks(doc, ("recipes", i, "steps"), r["steps"], marks)
+        draft.where[("steps", r["id"])] = marks
+
+
+def _step_marks(doc: LoadedDoc, path: tuple, steps: list, out: list) -> None:
+    """The position (file, line, col, scalar style) of every step, in the order `Step`s are walked: a
+    step, then the body of a `when`/`for` (the `when`/`for` key's position stands for the block)."""
+    for j, s in enumerate(steps):
+        if isinstance(s, str):
+            m = doc.pos.at(path + (j,))
+            out.append((doc.file, m.line, m.col, m.style))
+            continue
+        key = "for" if "for" in s else "when"
+        m = doc.pos.at(path + (j, key))
+        out.append((doc.file, m.line, m.col, m.style))
+        _step_marks(doc, path + (j, "do"), s["do"], out)
 
 
 def add_persona(draft: Draft, doc: LoadedDoc) -> None:

@@ -103,8 +103,15 @@ def _collisions(raw: list, verbs: set) -> list:
 
 
 def _actions(domain: CompiledDomain) -> tuple[tuple, tuple]:
-    raw = [(a.id, [_pieces(f, dict(a.slots)) for f in a.forms]) for a in domain.actions]
-    hits = _collisions(raw, set(domain.verbs))
+    return action_forms(domain.actions, domain.verbs)
+
+
+def action_forms(actions, verbs) -> tuple[tuple, tuple]:
+    """(ActionForms per action, collisions) from action specs and the declared verbs: what `build_index`
+    derives from a domain, also usable by the compiler before the domain exists. ValueError when an
+    action's forms name their slots in different orders."""
+    raw = [(a.id, [_pieces(f, dict(a.slots)) for f in a.forms]) for a in actions]
+    hits = _collisions(raw, set(verbs))
     keyword_alts = {(aid, i): v for aid, i, _, _, v in hits}
     excluded: dict = {}
     for _, _, bid, j, v in hits:
