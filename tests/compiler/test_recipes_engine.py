@@ -36,7 +36,8 @@ EDITS = {
                                  'reveal_in: {place: fridge_9, intro: Opened}')],           # D205
     "tasks/components.yaml": [("kind: beverage", "kind: beverages")],                       # D502
     "engine.yaml": [("dining_place: dining_place", "dining_place: dinning_place"),          # D502
-                    ("sweetener, fruit", "sweetener, fruits")],                             # D502
+                    ("sweetener, fruit", "sweetener, fruits"),                              # D502
+                    ("result_tags: [edible, food]", "result_tags: [edibel, food]")],        # D502
     "splits.yaml": [("[carlos, jamal, juan, maria]", "[carlos, jamall, juan, maria]"),     # D601, D602
                     ("[miranda, rachel, ron, sarah]", "[miranda, rachel, ron, sarah, lisa]")],  # D602
     "personas/lisa.yaml": [("\nnumber: 3\n", "\nnumber: 1\n")],                             # D303
@@ -92,6 +93,7 @@ CASES = [
     ("D502", ("unknown kind 'beverages'", "did you mean 'beverage'")),
     ("D502", ("dining_place 'dinning_place'", "did you mean 'dining_place'")),
     ("D502", ("swap family 'fruits'", "did you mean 'fruit'")),
+    ("D502", ("result_tags: 'edibel'", "did you mean 'edible'")),
     ("D601", ("unknown persona 'jamall'", "did you mean 'jamal'")),
     ("D602", ("'lisa' is unseen in split 0 and again in split 3",)),
     ("D602", ("'jamal' is unseen in no split",)),

@@ -84,18 +84,14 @@ def _order(domain: CompiledDomain, recipes: list, order: str) -> list:
     return recipes
 
 
-_CATEGORIES: dict = {}
-
-
 def _by_category(domain: CompiledDomain) -> dict:
-    """Substance ids by category (built once per domain)."""
-    hit = _CATEGORIES.get(id(domain))
-    if hit is None or hit[0] is not domain:
+    """Substance ids by category (built once per domain, kept with it)."""
+    def build(d: CompiledDomain) -> dict:
         table: dict = {}
-        for s in domain.substances:
+        for s in d.substances:
             table.setdefault(s.category, []).append(s.id)
-        hit = _CATEGORIES[id(domain)] = (domain, table)
-    return hit[1]
+        return table
+    return domain.derived("plans.by_category", build)
 
 
 class Executor:

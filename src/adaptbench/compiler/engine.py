@@ -29,6 +29,11 @@ def check_engine(draft: Draft) -> None:
     if eng.dining_place not in draft.tags:
         draft.error(_where(draft, ("engine", "dining_place")), "D502",
                     f"dining_place '{eng.dining_place}' is not a declared tag{did_you_mean(eng.dining_place, draft.tags)}")
+    for key in ("result_tags", "search_ignores"):
+        for j, tag in enumerate(getattr(eng, key)):
+            if tag not in draft.tags:
+                draft.error(_where(draft, ("engine", key, j)), "D502",
+                            f"{key}: '{tag}' is not a declared tag{did_you_mean(tag, draft.tags)}")
     classes = set(draft.tags) | set(draft.categories)
     for j, fam in enumerate(eng.swap_families):
         if fam not in classes:
@@ -37,6 +42,10 @@ def check_engine(draft: Draft) -> None:
     _unique(draft, [(k, ("engine", "kinds", g, j)) for g, ks in (("food", eng.food_kinds), ("drink", eng.drink_kinds))
                     for j, k in enumerate(ks)], "kind")
     _unique(draft, [(s, ("engine", "states", j)) for j, pair in enumerate(eng.states) for s in pair], "state")
+    _check_kinds(draft, eng)
+
+
+def _check_kinds(draft: Draft, eng) -> None:
     for c in draft.components:
         if c.kind not in eng.kinds:
             draft.error(_where(draft, ("component", c.id)), "D502",

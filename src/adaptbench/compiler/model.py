@@ -203,6 +203,8 @@ class Engine:
     action_verbs: tuple  # verbs the dedicated actions record (mix, cook, chop)
     swap_families: tuple  # tags or categories the oracle swaps multi-choice items within
     location_words: tuple  # storage nouns that make a question one about where things are
+    result_tags: tuple  # the tags of what a `to get` step makes (edible, food)
+    search_ignores: tuple  # tags too general to find things by with `Look for` (container, edible ...)
 
     @property
     def kinds(self) -> tuple:

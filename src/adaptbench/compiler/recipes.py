@@ -62,9 +62,9 @@ def check_recipe_steps(draft: Draft) -> None:
     verbs = {v for vs in draft.verb_groups.values() for v in vs}
     try:
         actions, _ = action_forms(draft.actions, verbs)
-    except (ValueError, KeyError):  # forms already reported (D202); steps cannot be read against them
-        return
-    matcher, kinds = FormMatcher(actions), slot_kinds(actions)
+        matcher, kinds = FormMatcher(actions), slot_kinds(actions)
+    except (ValueError, KeyError):  # bad forms or slot types, already reported (D201, D202): steps cannot
+        return                      # be read against them
     cat = _Catalogue({e.id for e in draft.entities}, {s.id for s in draft.substances}, set(draft.categories),
                      {**{k.lower(): k for k in matcher.keywords()}, **{v: v for v in verbs}}, verbs)
     seen: set = set()

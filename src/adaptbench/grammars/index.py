@@ -19,7 +19,6 @@ from dataclasses import dataclass
 
 from ..compiler.model import CompiledDomain
 
-_GENERIC = {"movable", "container", "source", "edible", "food"}
 _STOP = {"a", "an", "the", "some", "of", "and", "or", "with", "for", "in", "on", "to"}
 
 
@@ -141,14 +140,15 @@ def plural(word: str) -> str:
 
 
 def _phrases_of(spec, domain) -> set:
-    keys = {spec.category} | (set(spec.tags) - _GENERIC)
+    generic = set(domain.engine.search_ignores)
+    keys = {spec.category} | (set(spec.tags) - generic)
     keys |= {t.rsplit("_", 1)[1] for t in spec.tags if "_" in t}
     keys.add(spec.id.rsplit("_", 1)[0] if re.search(r"_\d+$", spec.id) else spec.id)
     for name in getattr(spec, "contents", ()):
         keys.add(name)
         sub = domain.substance.get(name)
         if sub:
-            keys |= {sub.category} | (set(sub.tags) - _GENERIC)
+            keys |= {sub.category} | (set(sub.tags) - generic)
     return keys
 
 
