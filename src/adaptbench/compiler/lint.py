@@ -134,7 +134,8 @@ def _conflicts(domain: CompiledDomain, persona: Persona, where: dict, items: lis
         for b in prefs[i + 1:]:
             if not _covers(domain, _scope(a), _scope(b)):
                 continue
-            why = _clash(a, b, items, rooms) or _clash(b, a, items, rooms)
+            memo = domain.derived("lint.class_items", lambda d: {})
+            why = _clash(a, b, items, rooms, memo) or _clash(b, a, items, rooms, memo)
             if why:
                 w = where[("rule", persona.id, b.id)]
                 out.append(Diagnostic(w.file, w.line, w.col, "L003",
@@ -142,7 +143,7 @@ def _conflicts(domain: CompiledDomain, persona: Persona, where: dict, items: lis
     return out
 
 
-def _clash(a: Preference, b: Preference, items: list, rooms: dict) -> str:
+def _clash(a: Preference, b: Preference, items: list, rooms: dict, memo: dict | None = None) -> str:
     for x in _atoms(a):
         for y in _atoms(b):
             if not (isinstance(x, A.Pred) and isinstance(y, A.Pred)):
@@ -153,8 +154,8 @@ def _clash(a: Preference, b: Preference, items: list, rooms: dict) -> str:
             if x.subject != y.subject:
                 continue
             if x.op == "has" and y.op == "has_no":
-                hit = [i.name for i in items if matches(x.args[0], i, rooms)]
-                if hit and all(matches(y.args[0], i, rooms) for i in items if matches(x.args[0], i, rooms)):
+                hit = _hits(x.args[0], items, rooms, memo)
+                if hit and all(matches(y.args[0], i, rooms) for i in hit):
                     return f"one needs {_text(x.args[0])}, the other forbids {_text(y.args[0])}"
             if x.op == "adds_before" and y.op == "adds_before" and _same(x.args, tuple(reversed(y.args))):
                 return "opposite orders"
@@ -165,17 +166,23 @@ def _same(a: tuple, b: tuple) -> bool:
     return [_text(c) for c in a] == [_text(c) for c in b]
 
 
+def _hits(cls, items: list, rooms: dict, memo: dict | None) -> list:
+    """The catalogue items a class expression matches (kept in `memo` by the expression's text)."""
+    key = _text(cls)
+    hit = memo.get(key) if memo is not None else None
+    if hit is None:
+        hit = [i for i in items if matches(cls, i, rooms)]
+        if memo is not None:
+            memo[key] = hit
+    return hit
+
+
 def _forbidden(x, y, items: list, rooms: dict, memo: dict | None = None) -> str:
     """Why atom `x` (`S has X`) cannot hold together with atom `y` (`S has no Y` / `S has only Y`) on the
     same dishes, or ''. `memo` keeps the items each class matches."""
     if not (isinstance(x, A.Pred) and isinstance(y, A.Pred) and x.op == "has"):
         return ""
-    key = _text(x.args[0])
-    hit = memo.get(key) if memo is not None else None
-    if hit is None:
-        hit = [i for i in items if matches(x.args[0], i, rooms)]
-        if memo is not None:
-            memo[key] = hit
+    hit = _hits(x.args[0], items, rooms, memo)
     if not hit:
         return ""
     if y.op == "has_no" and all(matches(y.args[0], i, rooms) for i in hit):
@@ -219,7 +226,8 @@ def _conditional_conflicts(domain: CompiledDomain, persona: Persona, where: dict
         for b in prefs[i + 1:]:
             if not (_cond_atoms(a) or _cond_atoms(b)) or not _covers(domain, _scope(a), _scope(b)):
                 continue
-            why = _clash(a, b, items, rooms) or _clash(b, a, items, rooms)
+            memo = domain.derived("lint.class_items", lambda d: {})
+            why = _clash(a, b, items, rooms, memo) or _clash(b, a, items, rooms, memo)
             if why and not _exclusive(a, b, items, rooms, domain.derived("lint.class_items", lambda d: {})):
                 conds = " and ".join(f"'{p.rule.source.split(':', 1)[0].strip()}'" for p in (a, b) if _cond_atoms(p))
                 w = where[("rule", persona.id, b.id)]
