@@ -74,6 +74,8 @@ def check_recipe_steps(draft: Draft) -> None:
                       draft.where.get(("steps", r.id), []), when=when)
         _collect_results(r.steps, matcher, kinds, rec)
         _walk(draft, r.steps, {}, rec, matcher, kinds, cat, seen)
+        for name in (r.serve, "place"):  # served at the end: `Move {serve} to {place}`
+            rec.uses.setdefault(name, {}).setdefault("entity", (None, f"Move {{{r.serve}}} to {{place}}"))
         _check_options(draft, rec, cat, seen)
     _report_when(draft, when, seen)
     _missing_recipes(draft)
