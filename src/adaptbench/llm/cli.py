@@ -137,8 +137,33 @@ def _cmd_model_init(args) -> int:
     return 0
 
 
+def _cmd_model_pretrain(args) -> int:
+    import glob
+
+    from ..compiler import load_domain
+    from .pretrain import pretrain
+
+    paths = [p for pat in args.data for p in (sorted(glob.glob(pat)) or [pat])]
+    missing = [p for p in paths if not Path(p).is_file()]
+    if missing:
+        _fail(f"no such file: {', '.join(missing)}")
+    if not Path(args.model).is_dir():
+        _fail(f"--model {args.model}: not a directory")
+    try:
+        info = pretrain(load_domain(args.spec), args.model, paths, args.out, steps=args.steps, lr=args.lr,
+                        budget=args.budget, seed=args.seed,
+                        log=(lambda m: None) if args.quiet else (lambda m: print(m, file=sys.stderr)))
+    except ImportError as exc:
+        _fail(f"{exc}; install the models extra: pip install torch==2.13.0 && pip install -e '.[models]'")
+    except ValueError as exc:
+        _fail(str(exc), 1)
+    print(f"trained on {info['examples']} steps of {info['episodes']} episodes for {info['steps']} updates "
+          f"(loss {info['first_loss']:.2f} -> {info['last_loss']:.2f}); saved to {args.out}")
+    return 0
+
+
 def add_commands(sub) -> None:
-    """Register `adapt model init`."""
+    """Register `adapt model init` and `adapt model pretrain`."""
     from ..cli_episode import add_spec_option
 
     p = sub.add_parser("model", help="local models: `adapt model init --out DIR` builds the tiny test model")
@@ -153,3 +178,17 @@ def add_commands(sub) -> None:
     q.add_argument("--hidden", type=int, default=64)
     q.add_argument("--layers", type=int, default=2)
     q.set_defaults(func=_cmd_model_init)
+    q = msub.add_parser("pretrain", help="fine-tune a model on recorded trajectories rendered with the planner prompt",
+                        description="Replays each episode of the results files (oracle or teacher runs) to rebuild "
+                                    "the planner's prompt at every step and trains on the recorded action (loss on "
+                                    "the action tokens only). CPU by default.")
+    add_spec_option(q)
+    q.add_argument("--model", required=True, help="model directory to start from (e.g. from adapt model init)")
+    q.add_argument("--data", required=True, nargs="+", help="results files or globs, e.g. runs/oracle*.jsonl")
+    q.add_argument("--out", required=True, help="directory to save the fine-tuned model into")
+    q.add_argument("--steps", type=int, default=2000, help="updates, one example each (default 2000)")
+    q.add_argument("--lr", type=float, default=3e-3)
+    q.add_argument("--budget", type=int, help="prompt token budget (oldest steps dropped first)")
+    q.add_argument("--seed", type=int, default=0)
+    q.add_argument("--quiet", action="store_true")
+    q.set_defaults(func=_cmd_model_pretrain)
