@@ -3,8 +3,9 @@
     text = render(tokenizer, prompt)              # chat template + generation prompt + prefix
     prompt = fit(tokenizer, build, budget=4096)   # build(omit) -> Prompt; oldest history dropped first
 
-`fit` keeps the system message and the opening user message (which then says how many steps were left
-out) and drops whole (action, observation) pairs from the oldest until the rendered prompt fits.
+`fit` keeps the system message, the opening user message (which then says how many steps were left
+out) and the last step, and drops whole (action, observation) pairs from the oldest until the rendered
+prompt fits.
 """
 
 from __future__ import annotations
@@ -49,15 +50,15 @@ def history_steps(prompt: Prompt) -> int:
 
 def fit(tokenizer, build: Callable[[int], Prompt], budget: int | None) -> Prompt:
     """The prompt with the fewest oldest steps left out (`build(omit)`) whose rendering fits `budget`
-    tokens; with no budget, or when even the shortest does not fit, the shortest is returned (its
-    `meta['over_budget']` then says by how much)."""
+    tokens, never the last step; with no budget the full prompt, and when even the shortest does not
+    fit, the shortest (its `meta['over_budget']` then says by how much)."""
     full = build(0)
     if budget is None:
         return full
     n = history_steps(full)
     if count(tokenizer, render(tokenizer, full)) <= budget:
         return full
-    lo, hi = 1, n  # the answer is in [lo, hi]; hi (every step omitted) is the shortest
+    lo, hi = min(1, n - 1), max(n - 1, 0)  # the last step (its observation) is always kept
     while lo < hi:
         mid = (lo + hi) // 2
         if count(tokenizer, render(tokenizer, build(mid))) <= budget:

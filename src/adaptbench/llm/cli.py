@@ -20,6 +20,8 @@ def add_rollout_options(p) -> None:
     g.add_argument("--dtype", default="auto", choices=["auto", "float32", "bfloat16", "float16"])
     g.add_argument("--batch", type=int, default=16, help="episodes advanced together (default 16)")
     g.add_argument("--max-steps", type=int, help="step budget per episode (default 50; always-ask 50 x (1 + 1/N))")
+    g.add_argument("--budget", type=int, help="prompt token budget (oldest steps dropped first; default: the "
+                   "model's context less the generation limits)")
     g.add_argument("--user", choices=["offline", "llm"], default="offline", help="who answers questions")
     g.add_argument("--user-model", help="model directory of the LLM user (default: --model)")
 
@@ -77,7 +79,7 @@ def run_rollout(args, jobs: list, domain) -> int:
     for agent in dict.fromkeys(j.agent for j in jobs):
         if agent not in AGENTS:
             _fail(f"agent '{agent}' cannot be mixed with language-model agents in one command")
-        policy = LLMPolicy(backend, domain, agent)
+        policy = LLMPolicy(backend, domain, agent, budget=args.budget)
         try:
             res = rollout_llm([j for j in jobs if j.agent == agent], Path(args.out), domain, policy, make_user,
                               args.batch, not args.quiet, user_config, args.max_steps)
