@@ -58,7 +58,7 @@ def fit(tokenizer, build: Callable[[int], Prompt], budget: int | None) -> Prompt
     n = history_steps(full)
     if count(tokenizer, render(tokenizer, full)) <= budget:
         return full
-    lo, hi = min(1, n - 1), max(n - 1, 0)  # the last step (its observation) is always kept
+    lo, hi = (1, n - 1) if n > 1 else (0, 0)  # the last step (its observation) is always kept
     while lo < hi:
         mid = (lo + hi) // 2
         if count(tokenizer, render(tokenizer, build(mid))) <= budget:
