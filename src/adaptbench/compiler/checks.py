@@ -198,7 +198,7 @@ def _check_styles(draft: Draft, names: Names) -> None:
 
 def _check_process(draft: Draft, style: str, alt: dict, names: Names) -> None:
     pools = {"food": ("class", names.classes), "with": ("class", names.classes)}
-    for key in ("before_heat", "not_before_heat", "while_hot", "not_while_hot"):
+    for key in ("before_heat", "not_before_heat", "while_hot", "not_while_hot", "made_by"):
         pools[key] = ("verb group", names.verb_groups)
     for key, (what, known) in pools.items():
         for name in alt.get(key, "").split("|"):
