@@ -267,3 +267,41 @@ def test_tea_bag_under_the_hot_water_is_made_with(domain):
     honey = actions + ["Pour honey from honey_0 to cup_0"]
     assert judge(domain, honey, "for tea: it topped with honey", task="tea_eggs").verdict == "satisfied"
     assert judge(domain, honey, "for tea: it made with honey", task="tea_eggs").verdict == "violated"
+
+
+# ---- every object of the sentence is checked: `each S with X (...)` (issue 6, item 12)
+SEASONED_EGGS = FIND + ["Look for pepper"] + PAN + ["Move salt from salt_box_0 to pan_1",
+                                                    "Move pepper from pepper_0 to pan_1"] + SCRAMBLE
+TOMATO_SIDE = ["Move tomato_0 to plate_1", "Move plate_1 to table_1"]
+SALTED_TOMATO_SIDE = ["Move tomato_0 to plate_1", "Move salt from salt_box_0 to plate_1",
+                      "Move pepper from pepper_0 to plate_1", "Move plate_1 to table_1"]
+SALT_AND_PEPPER = "for egg_dish: it has salt and it has pepper and each sides with vegetable (it has salt and it has pepper)"
+EACH_CASES = [
+    ("eggs and vegetable side both seasoned", SEASONED_EGGS + ["Move plate_0 to table_1"] + SALTED_TOMATO_SIDE,
+     "satisfied"),
+    ("an unseasoned vegetable side breaks 'salt and pepper on eggs and vegetables'",
+     SEASONED_EGGS + ["Move plate_0 to table_1"] + TOMATO_SIDE, "violated"),
+    ("no vegetable served: only the eggs are checked", SEASONED_EGGS + ["Move plate_0 to table_1"], "satisfied"),
+    ("a tomato placed unseasoned on the seasoned eggs is an unseasoned vegetable",
+     SEASONED_EGGS + ["Move tomato_0 to plate_0", "Move plate_0 to table_1"], "violated"),
+    ("seasoned vegetables but plain eggs", FIND + ["Look for pepper"] + PAN + SCRAMBLE + ["Move plate_0 to table_1"]
+     + SALTED_TOMATO_SIDE, "violated"),
+]
+
+
+@pytest.mark.parametrize("name,actions,expected", EACH_CASES, ids=[c[0] for c in EACH_CASES])
+def test_each_object_of_the_sentence(domain, name, actions, expected):
+    v = judge(domain, actions, SALT_AND_PEPPER, task="eggs")
+    assert v.verdict == expected, f"{name}: {v.verdict} ({v.reason})"
+
+
+def test_each_parses_and_is_checked(domain):
+    from adaptbench.compiler import ast as A
+    from adaptbench.compiler.rules import parse_rule
+
+    rule = parse_rule("for egg_dish: each sides with (vegetable | meat) (count(it, spice) >= 2)")
+    each = rule.expr
+    assert isinstance(each, A.Each) and each.subject == "sides" and each.cls is not None
+    assert A.from_data(A.to_data(rule)) == rule
+    plain = parse_rule("for toast: each it (it has butter)").expr
+    assert isinstance(plain, A.Each) and plain.cls is None
