@@ -196,7 +196,7 @@ def _heat_entity(world: World, eid: str) -> None:
         node = world.nodes[eid]
         _heat_node(world, node, vessels)
         if _in_water(world, world.parent.get(eid)):
-            node.wet.append(world.step)  # a whole egg in a pot of water: boiled in its shell
+            node.wet += (world.step,)  # a whole egg in a pot of water: boiled in its shell
     for n in world.contents.get(eid, ()):
         _heat_node(world, n, vessels)
 
@@ -211,17 +211,25 @@ def _in_water(world: World, holder: str | None) -> bool:
 _COLD = frozenset(("fridge", "freezer"))
 
 
+_COLD_IDS: dict = {}  # id(domain) -> (domain, the catalogue ids of cold furniture)
+
+
 def _is_cold(world: World, target: str) -> bool:
-    return any(world.specs[e].category in _COLD for e in (target, *world.ancestors(target)) if e in world.specs)
+    domain = world.domain
+    hit = _COLD_IDS.get(id(domain))
+    if hit is None or hit[0] is not domain:
+        hit = _COLD_IDS[id(domain)] = (domain, frozenset(e.id for e in domain.entities if e.category in _COLD))
+    cold = hit[1]
+    return bool(cold) and (target in cold or any(a in cold for a in world.ancestors(target)))
 
 
 def _chill_entity(world: World, eid: str) -> None:
     """Everything edible in or on `eid` (and `eid` itself) was chilled now."""
     for e in (eid, *world.descendants(eid)):
         if e in world.nodes:
-            world.nodes[e].chilled.append(world.step)
+            world.nodes[e].chilled += (world.step,)
         for n in world.contents.get(e, ()):
-            n.chilled.append(world.step)
+            n.chilled += (world.step,)
 
 
 def heat(world: World, params: dict, b: dict, ctx) -> None:
@@ -273,7 +281,7 @@ def pour(world: World, params: dict, b: dict, ctx) -> None:
     world.put_contents(target, nodes)
     if _is_cold(world, target):
         for n in nodes:
-            n.chilled.append(world.step)
+            n.chilled += (world.step,)
 
 
 def _applies(world: World, flag: str | None, verb: str) -> bool:

@@ -29,8 +29,8 @@ class Node:
         self.verb = verb
         self.created = created
         self.heated: list = []  # steps at which it was heated
-        self.wet: list = []  # steps at which it was heated whole in water (an egg boiled in its shell)
-        self.chilled: list = []  # steps at which it was put in a fridge or freezer
+        self.wet: tuple = ()  # steps at which it was heated whole in water (an egg boiled in its shell)
+        self.chilled: tuple = ()  # steps at which it was put in a fridge or freezer
         self.cut = False
         self.vessels: set = set()  # entity ids it was heated or made in
         self.arrived = created  # last step it was put into a container
