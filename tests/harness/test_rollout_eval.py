@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 
 from adaptbench.cli import main
-from adaptbench.harness.evaluate import UNSEEN, mean_se, table
+from adaptbench.harness.evaluate import mean_se, table
 from adaptbench.harness.rollout import Job, done_keys, parse_seeds, rollout
 
 from ..conftest import SPEC
@@ -34,11 +34,11 @@ def test_rollout_appends_and_resumes(tmp_path, domain):
     assert rec["spec_hash"] == domain.spec_hash and rec["agent_config"]["agent"] == "never-ask"
 
 
-def test_table_seen_unseen_and_se():
+def test_table_seen_unseen_and_se(domain):
     recs = [{"agent": "x", "persona": "juan", "satisfaction_rate": 1.0, "questions": 2, "split": 1},
             {"agent": "x", "persona": "ron", "satisfaction_rate": 0.5, "questions": 4, "split": 1}]
-    row = table(recs)[0]
-    assert "juan" in UNSEEN[1]
+    row = table(recs, domain.unseen)[0]
+    assert "juan" in domain.unseen[1]
     assert row["rate_unseen"] == (1.0, 0.0) and row["rate_seen"] == (0.5, 0.0)
     assert mean_se([1.0, 0.0]) == (0.5, 0.5)
 
