@@ -22,10 +22,10 @@ examples:
 
 
 def _cmd_validate(args) -> int:
-    from .compiler import compile_spec
+    from .compiler import compile_cached
     from .compiler.diagnostics import render_all
 
-    domain, diags = compile_spec(args.spec_dirs)
+    domain, diags = compile_cached(args.spec_dirs)
     if args.format == "json":
         print(render_all(diags, "json"))
     elif diags:
@@ -89,6 +89,17 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def report_spec_error(exc, spec=None) -> None:
+    """The one report every command gives on a spec that does not compile: each located diagnostic, then a
+    count, on stderr (the command then exits 1)."""
+    from .compiler.diagnostics import render_all
+
+    errors = sum(d.severity == "error" for d in exc.diagnostics)
+    print(render_all(exc.diagnostics), file=sys.stderr)
+    where = f" in {spec}" if isinstance(spec, str) else ""
+    print(f"adapt: {errors} error(s){where}; fix them and run again (`adapt validate` lists them)", file=sys.stderr)
+
+
 def main(argv=None) -> int:
     """Entry point of the `adapt` command."""
     parser = build_parser()
@@ -96,8 +107,13 @@ def main(argv=None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
+    from .compiler.diagnostics import SpecError
+
     try:
         return args.func(args)
+    except SpecError as exc:
+        report_spec_error(exc, getattr(args, "spec", None))
+        return 1
     except SystemExit as exc:  # commands exit 1/2 with a message already printed
         return exc.code if isinstance(exc.code, int) else 1
     except KeyboardInterrupt:

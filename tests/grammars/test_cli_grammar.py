@@ -46,3 +46,11 @@ def test_show_reports_bad_input(tmp_path, capsys):
     assert main(["grammar", "show", "--spec", spec, "--task", "eggs", "--seed", "0",
                  "--after", str(tmp_path / "missing.txt")]) == 2
     assert "cannot read" in capsys.readouterr().err
+
+
+def test_cli_choices_match_the_grammar_levels_and_variants():
+    """cli_grammar writes the choices out (so `adapt --help` does not import the grammar code)."""
+    from adaptbench import cli_grammar
+    from adaptbench.grammars import LEVELS, VARIANTS
+
+    assert (cli_grammar.LEVELS, cli_grammar.VARIANTS) == (LEVELS, VARIANTS)
