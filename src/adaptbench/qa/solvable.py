@@ -26,11 +26,13 @@ def _one(args) -> list:
     return [(persona, task, seed, v.id, v.reason) for v in env.evaluate().verdicts if v.verdict == "violated"]
 
 
-def unsolved(spec: str, personas: list, tasks: list, seeds: list, workers: int = 1) -> list:
+def unsolved(spec: str, personas: list, tasks: list, seeds: list, workers: int = 1, progress: bool = True) -> list:
     """(persona, task, seed, preference, reason) for every applicable preference the oracle violates."""
+    import io
+
     jobs = [(spec, p, t, s) for p in personas for t in tasks for s in seeds]
     out = []
-    with Progress(len(jobs), "check-solvable") as bar:
+    with Progress(len(jobs), "check-solvable", stream=None if progress else io.StringIO()) as bar:
         if workers <= 1:
             for j in jobs:
                 out += _one(j)
