@@ -36,7 +36,8 @@ def hint(problem: str | None, text: str, line: int, col: int) -> str:
     if "quoted scalar" in problem or "end of stream" in problem and here.count('"') % 2:
         return QUOTE
     if "expected ',' or ']'" in problem or "expected ',' or '}'" in problem:
-        return BRACKET
+        item = here[max(here.rfind(",", 0, col - 1), here.rfind("{", 0, col - 1)) + 1: col - 1]
+        return COLON if here[col - 1: col] == ":" and ": " in item else BRACKET
     if any(k in problem for k in ("expected key", "'-' indicator", "block end", "expected ':'")):
         return INDENT
     return ""
