@@ -15,8 +15,11 @@ def _cmd_test(args) -> int:
     from .cli_runs import _seeds
     from .qa.spectest import run_tests
 
+    def ids(text):
+        return [x.strip() for x in text.split(",") if x.strip()] if text else None
+
     report = run_tests(args.spec_dir, args.fixtures, _seeds(args.seeds), args.workers, args.strict,
-                       progress=args.progress)
+                       progress=args.progress, personas=ids(args.personas), tasks=ids(args.tasks))
     print(report.render(limit=10**6 if args.verbose else 20))
     return 0 if report.ok else 1
 
@@ -86,6 +89,8 @@ def add_commands(sub) -> None:
     p.add_argument("--seeds", default="0-1", help="scene seeds for the solvability check (default 0-1)")
     p.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1),
                    help="parallel processes for the solvability check (default: 2, or 1 on one core)")
+    p.add_argument("--personas", help="solvability check only for these personas (comma-separated; default all)")
+    p.add_argument("--tasks", help="solvability check only on these tasks (comma-separated; default all)")
     p.add_argument("--strict", action="store_true", help="linter warnings fail too")
     p.add_argument("--progress", action="store_true", help="show the solvability check's progress")
     p.add_argument("--verbose", "-v", action="store_true", help="list every problem (default: 20 per check)")

@@ -46,15 +46,16 @@ class Report:
 
 
 def run_tests(spec, fixtures=None, seeds=(0, 1), workers: int = 1, strict: bool = False,
-              progress: bool = False) -> Report:
+              progress: bool = False, personas=None, tasks=None) -> Report:
     """Validate `spec`, run the fixtures under `fixtures` (default SPEC/fixtures) and the solvability check on
-    `seeds`. Fixtures and solvability are skipped when the spec does not compile."""
+    `seeds` for `personas` x `tasks` (default: all). Fixtures and solvability are skipped when the spec does
+    not compile; unknown persona or task ids fail the solvability check."""
     start = time.perf_counter()
     report = Report(str(spec))
     domain = _validate(report, spec, strict)
     if domain is not None:
         report.checks.append(fixture_check(domain, Path(fixtures) if fixtures else Path(spec) / "fixtures"))
-        report.checks.append(solvable_check(domain, spec, list(seeds), workers, progress))
+        report.checks.append(solvable_check(domain, spec, list(seeds), workers, progress, personas, tasks))
     report.seconds = time.perf_counter() - start
     return report
 
@@ -100,13 +101,18 @@ def fixture_check(domain, root: Path) -> Check:
     return Check("fixtures", failed == 0, summary, tuple(details))
 
 
-def solvable_check(domain, spec, seeds: list, workers: int, progress: bool) -> Check:
+def solvable_check(domain, spec, seeds: list, workers: int, progress: bool, personas=None, tasks=None) -> Check:
     """The oracle on every persona x task x seed must satisfy every applicable preference."""
     from .solvable import unsolved
 
-    rows = unsolved(str(spec), [p.id for p in domain.personas], [t.id for t in domain.tasks], seeds, workers,
-                    progress=progress)
-    grid = f"{len(domain.personas)} personas x {len(domain.tasks)} tasks x seeds {', '.join(map(str, seeds))}"
+    personas = list(personas or domain.persona)
+    tasks = list(tasks or domain.task)
+    unknown = [f"unknown persona '{p}'" for p in personas if p not in domain.persona] + \
+        [f"unknown task '{t}'" for t in tasks if t not in domain.task]
+    if unknown:
+        return Check("solvable", False, "; ".join(unknown))
+    rows = unsolved(str(spec), personas, tasks, seeds, workers, progress=progress)
+    grid = f"{len(personas)} personas x {len(tasks)} tasks x seeds {', '.join(map(str, seeds))}"
     details = tuple(f"{p}/{t} seed {s}: {pref}: {why}" for p, t, s, pref, why in rows)
     return Check("solvable", not rows, f"{len(rows)} applicable preference(s) the oracle cannot satisfy ({grid})",
                  details)
