@@ -91,19 +91,33 @@ def main(argv=None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
-    from .compiler.diagnostics import SpecError
-
     try:
         return args.func(args)
-    except SpecError as exc:
-        report_spec_error(exc, getattr(args, "spec", None))
-        return 1
     except SystemExit as exc:  # commands exit 1/2 with a message already printed
         return exc.code if isinstance(exc.code, int) else 1
     except KeyboardInterrupt:
         return 130
     except BrokenPipeError:
         return 0
+    except Exception as exc:  # noqa: BLE001 - the one place that turns expected failures into messages
+        return _report(exc, getattr(args, "spec", None))
+
+
+def _report(exc: Exception, spec=None) -> int:
+    """Print a spec error's diagnostics or a file problem as a message; anything else is a bug and keeps
+    its traceback."""
+    from .compiler import SpecError
+
+    if isinstance(exc, SpecError):
+        report_spec_error(exc, spec)
+        return 1
+    if isinstance(exc, OSError) and exc.filename:
+        print(f"adapt: {exc.filename}: {exc.strerror or exc}", file=sys.stderr)
+        return 1
+    if isinstance(exc, UnicodeDecodeError):
+        print(f"adapt: a file is not UTF-8 text ({exc.reason} at byte {exc.start})", file=sys.stderr)
+        return 1
+    raise exc
 
 
 if __name__ == "__main__":

@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 
 from adaptbench.cli import main
-from adaptbench.harness.evaluate import UNSEEN, mean_se, table
+from adaptbench.harness.evaluate import mean_se, table
 from adaptbench.harness.rollout import Job, done_keys, parse_seeds, rollout
 
 from ..conftest import SPEC
@@ -34,11 +34,11 @@ def test_rollout_appends_and_resumes(tmp_path, domain):
     assert rec["spec_hash"] == domain.spec_hash and rec["agent_config"]["agent"] == "never-ask"
 
 
-def test_table_seen_unseen_and_se():
+def test_table_seen_unseen_and_se(domain):
     recs = [{"agent": "x", "persona": "juan", "satisfaction_rate": 1.0, "questions": 2, "split": 1},
             {"agent": "x", "persona": "ron", "satisfaction_rate": 0.5, "questions": 4, "split": 1}]
-    row = table(recs)[0]
-    assert "juan" in UNSEEN[1]
+    row = table(recs, domain.unseen)[0]
+    assert "juan" in domain.unseen[1]
     assert row["rate_unseen"] == (1.0, 0.0) and row["rate_seen"] == (0.5, 0.0)
     assert mean_se([1.0, 0.0]) == (0.5, 0.5)
 
@@ -55,13 +55,24 @@ def test_cli_rollout_then_eval(tmp_path, domain, capsys):
     assert md.read_text().startswith("| Method |")
 
 
-def test_eval_plot_is_valid_svg(tmp_path):
-    import xml.etree.ElementTree as ET
-
-    from adaptbench.harness.plots import svg
+def test_eval_plot_is_a_png_with_every_agent_and_persona(tmp_path):
+    from adaptbench.harness.plots import draw, persona_matrix
 
     recs = [{"agent": a, "persona": p, "satisfaction_rate": r, "questions": q}
             for a, r, q in (("never-ask", 0.3, 0), ("oracle", 0.9, 0)) for p in ("juan", "ron")]
-    root = ET.fromstring(svg(table(recs), recs))
-    texts = [t.text for t in root.iter("{http://www.w3.org/2000/svg}text")]
-    assert "oracle" in texts and "juan" in texts and "90%" in texts
+    recs.append({"agent": "oracle", "persona": "lisa", "satisfaction_rate": None, "questions": 0})
+    out = tmp_path / "t.png"
+    draw(table(recs), recs, out)
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and out.stat().st_size > 5000
+    personas, grid = persona_matrix(recs, ["never-ask", "oracle"])
+    assert personas == ["juan", "lisa", "ron"]
+    assert grid[0] == [0.3, 0.9] and grid[1] == [None, None]
+
+
+def test_eval_plot_from_the_command_line(tmp_path, capsys):
+    recs = [{"agent": "oracle", "persona": "juan", "task": "cereal", "seed": 0, "satisfaction_rate": 1.0,
+             "questions": 0, "spec_hash": "x", "satisfied": [], "violated": []}]
+    f = tmp_path / "r.jsonl"
+    f.write_text("".join(__import__("json").dumps(r) + "\n" for r in recs))
+    assert main(["eval", str(f), "--plot", str(tmp_path / "t.svg")]) == 0
+    assert (tmp_path / "t.svg").read_text().lstrip().startswith("<?xml")

@@ -5,8 +5,6 @@ from __future__ import annotations
 
 import copy
 
-FILES = {"objects": "objects", "actions": "actions", "tasks": "tasks", "persona": "persona"}
-
 DOCS = {  # (kind, dotted path under properties/items) -> description
     ("objects", "objects.category"): "what the object IS: one category (spec/objects/vocabulary.yaml)",
     ("objects", "objects.tags"): "what the object is LIKE: tags rules can talk about (vocabulary.yaml)",
@@ -64,17 +62,18 @@ def _declared(domain) -> dict:
         ("tasks", "tasks.components"): _names(comps),
         ("tasks", "components.groups"): _names([(g, "a component group") for g in groups]),
         ("tasks", "components.requires"): _names(tags + cats),
+        ("splits", "splits.unseen"): _names([(p.id, f"persona {p.number}: {p.name}") for p in domain.personas]),
     }
 
 
 def schemas(domain=None) -> dict:
     """{file name: schema} for every kind of spec file; with `domain`, lists of ids and names carry the
     declared names (an editor completes them and flags undeclared ones)."""
-    from ..compiler.loader import schema
+    from ..compiler.loader import SCHEMA_KINDS, schema
 
     out = {}
     declared = _declared(domain) if domain is not None else {}
-    for kind in FILES:
+    for kind in SCHEMA_KINDS:
         data = copy.deepcopy(schema(kind))
         for (k, dotted), text in DOCS.items():
             node = _node(data, dotted) if k == kind else None

@@ -14,6 +14,7 @@ records every step and hands the next `View` back. Batched policies (language mo
 
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -59,8 +60,9 @@ class Decision:
     stats: dict = field(default_factory=dict)
 
 
-class Policy:
-    """Base class of every agent. Subclasses set `name` and implement `act` (or `act_batch`)."""
+class Policy(ABC):
+    """Base class of every agent. Subclasses set `name` and implement `act` (batched policies also
+    override `act_batch`)."""
 
     name = "policy"
 
@@ -71,10 +73,11 @@ class Policy:
     def start(self, episode: str, env) -> None:
         """Called once when an episode starts. Privileged policies (the oracle, the teacher) may plan
         from `env` here; every other policy must ignore it."""
+        return None  # noqa: B027 - most policies need no set-up
 
+    @abstractmethod
     def act(self, view: View) -> Decision:
         """The next action for one episode."""
-        raise NotImplementedError
 
     def act_batch(self, views: Sequence[View]) -> list:
         """The next action for each of several episodes (one decision per view, in order)."""

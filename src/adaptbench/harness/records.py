@@ -38,7 +38,7 @@ class Runs:
         return f"skipped {sum(self.skipped.values())} line(s): {parts}"
 
 
-def _bad_values(rec: dict) -> str | None:
+def _bad_values(rec: dict, splits) -> str | None:
     if "satisfaction_rate" not in rec or "questions" not in rec:
         return "not an episode record"
     rate, q = rec["satisfaction_rate"], rec["questions"]
@@ -48,26 +48,26 @@ def _bad_values(rec: dict) -> str | None:
         return "bad satisfaction_rate"
     if isinstance(q, bool) or not isinstance(q, int | float) or q < 0:
         return "bad questions"
-    if "split" in rec and not _known_split(rec["split"]):
+    if "split" in rec and not _known_split(rec["split"], splits):
         return "unknown split"
     return None
 
 
-def _known_split(split) -> bool:
-    from .evaluate import UNSEEN
-
+def _known_split(split, splits) -> bool:
+    if isinstance(split, bool) or not isinstance(split, int | str):
+        return False
     try:
-        return int(split) in UNSEEN
-    except (TypeError, ValueError):
+        return int(split) in (splits() if callable(splits) else splits or {})
+    except ValueError:
         return False
 
 
-def _classify(rec, why, seen: set) -> str | None:
+def _classify(rec, why, seen: set, splits) -> str | None:
     if rec is None:
         return {"not JSON": "not JSON (torn line)"}.get(why, why)
     if "error" in rec:
         return "episode ended in an error"
-    bad = _bad_values(rec)
+    bad = _bad_values(rec, splits)
     if bad:
         return bad
     key = episode_key(rec)
@@ -84,8 +84,10 @@ def _check_file(path: Path) -> None:
         raise RunsError(f"{path} is a directory; give the JSONL files written by adapt rollout", 2)
 
 
-def load_runs(paths) -> Runs:
-    """Read every file; RunsError for a missing or unreadable one."""
+def load_runs(paths, splits=None) -> Runs:
+    """Read every file; RunsError for a missing or unreadable one. `splits`: the domain's split ids (a
+    mapping, or a callable returning one, called only if some record has a `split`); a record whose
+    split is not among them is skipped."""
     runs, seen = Runs(), set()
     for p in map(Path, paths):
         _check_file(p)
@@ -93,7 +95,7 @@ def load_runs(paths) -> Runs:
         try:
             for _, line in iter_lines(p):
                 rec, why = parse_line(line)
-                reason = _classify(rec, why, seen)
+                reason = _classify(rec, why, seen, splits)
                 if reason:
                     runs.skipped[reason] += 1
                     continue

@@ -122,8 +122,16 @@ def run_episode(job: Job, spec: str = "spec") -> dict:
     RUNNERS[job.agent](env)
     ev = env.evaluate()
     steps = [{"action": e.text, "ok": e.ok, "observation": e.observation, "reply": e.reply} for e in env.world.trace]
-    return {**_header(job, d.spec_hash), "scene": env.scene.scene_id, "steps": steps, "n_steps": len(steps),
-            "satisfied": ev.satisfied, "violated": ev.violated, **ev.as_dict()}
+    record = {**_header(job, d.spec_hash), "scene": env.scene.scene_id, "steps": steps, "n_steps": len(steps),
+              "satisfied": ev.satisfied, "violated": ev.violated, **ev.as_dict()}
+    return {**record, "notes": notes} if (notes := _notes(d, task)) else record
+
+
+def _notes(domain, task) -> list:
+    """What the scripted agents could not do on this task (`no recipe for component X`)."""
+    from ..agents.plans import notes
+
+    return notes(domain, task)
 
 
 def safe_episode(job: Job, spec: str = "spec") -> dict:

@@ -61,12 +61,12 @@ def _query_words(query: str) -> frozenset:
     return _stems(key) | (frozenset(s for w in words for s in _stems(w)) if len(words) == 1 else frozenset())
 
 
-_GENERIC = {"movable", "container", "source", "edible", "food"}
 _INDEX: dict = {}
 
 
 def _static_keys(spec, domain) -> frozenset:
-    keys = {spec.category} | (set(spec.tags) - _GENERIC)
+    generic = set(domain.engine.search_ignores)
+    keys = {spec.category} | (set(spec.tags) - generic)
     keys |= {t.rsplit("_", 1)[1] for t in spec.tags if "_" in t}  # breakfast_cereal -> cereal
     keys |= {s for w in re.findall(r"[a-z]+", spec.description.lower()) for s in _stems(w)}
     keys.add(spec.id.rsplit("_", 1)[0])
@@ -74,7 +74,7 @@ def _static_keys(spec, domain) -> frozenset:
         sub = domain.substance.get(name)
         keys.add(name)
         if sub:
-            keys |= {sub.category} | (set(sub.tags) - _GENERIC)
+            keys |= {sub.category} | (set(sub.tags) - generic)
             keys |= {t.rsplit("_", 1)[1] for t in sub.tags if "_" in t}
     return frozenset(keys)
 
@@ -164,14 +164,11 @@ def _natural(eid: str):
 
 
 def set_state(world: World, params: dict, b: dict, ctx) -> None:
-    """Open/close or switch an entity on/off."""
+    """Set a state of an entity (open, on ...), clearing its opposite (spec/engine.yaml `states`)."""
     eid, state = _ent(params, b, "target"), params["state"]
     states = world.state.setdefault(eid, set())
-    flip = {"open": "closed", "closed": "open", "on": "off", "off": "on"}
-    states.discard(flip[state])
+    states.discard(world.domain.engine.opposite(state))
     states.add(state)
-    if state == "off":
-        states.discard("on")
 
 
 def took_part(world: World, node, vessels) -> None:
@@ -261,7 +258,7 @@ def combine(world: World, params: dict, b: dict, ctx) -> None:
             world.remove(child)
     if not inputs:
         raise ActionFailed(f"{container} holds nothing to {verb} (endless supplies must be poured out first)")
-    node = world.new_node(result, None, frozenset(("edible", "food")), tuple(inputs), verb)
+    node = world.new_node(result, None, frozenset(world.domain.engine.result_tags), tuple(inputs), verb)
     took_part(world, node, [container, *world.ancestors(container)])
     node.arrived = min(n.arrived for n in inputs)
     world.contents[container] = [node]
@@ -277,7 +274,7 @@ def transform(world: World, params: dict, b: dict, ctx) -> None:
         _transform_object(world, ref.value, result, verb, params)
         return
     old = world.take_contents(ref.holder, ref.value)
-    node = world.new_node(result, None, frozenset(("edible", "food")), tuple(old), verb)
+    node = world.new_node(result, None, frozenset(world.domain.engine.result_tags), tuple(old), verb)
     _mark(world, node, params, verb, ref.holder)
     node.arrived = min(n.arrived for n in old)
     world.contents.setdefault(ref.holder, []).append(node)
@@ -289,11 +286,11 @@ def _transform_object(world: World, eid: str, result: str, verb: str, params: di
         raise ActionFailed(f"{eid} is not edible")
     where = world.parent[eid]
     old = world.nodes[eid]
-    node = world.new_node(result, None, frozenset(("edible", "food")), (old,), verb)
+    node = world.new_node(result, None, frozenset(world.domain.engine.result_tags), (old,), verb)
     node.arrived = old.arrived
     _mark(world, node, params, verb, where)
     desc = f"{verb} {world.specs[eid].description}"
-    spec = EntitySpec(result, "movable", desc, "result", ("edible", "food", "movable"), where)
+    spec = EntitySpec(result, "movable", desc, "result", (*world.domain.engine.result_tags, "movable"), where)
     world.remove(eid)
     world.add_entity(spec, node, where)
 

@@ -156,13 +156,13 @@ class Ctx:
     def kind_ok(self, dish: Dish, comp: str, targets) -> bool:
         """Whether a dish of `comp` is among `targets` (a kind target asks the dish's own kind)."""
         c = self.domain.component[comp]
-        if c.alt_kind is None or any(comp in self.expand(t) for t in targets if t not in _KINDS):
+        food = self.domain.engine.food_kinds
+        if c.alt_kind is None or any(comp in self.expand(t) for t in targets if t not in food):
             return True
         return self.kind(dish, comp) in targets
 
 
 _COMPILED: dict = {}
-_KINDS = frozenset(("sweet", "savory"))
 
 
 def compiled(domain: CompiledDomain, rule: A.Rule, part: str = "expr"):
