@@ -111,6 +111,8 @@ def test_adapt_test_runs_the_solvability_check(spec, capsys):
     (spec / "personas" / "cy.yaml").write_text(
         "id: cy\nname: Cy\nnumber: 3\npreferences:\n"
         "  - {id: salted, text: Salt my eggs, rule: \"for eggs: it has salt\", topics: [salt]}\n")
+    splits = spec / "splits.yaml"
+    splits.write_text(splits.read_text().replace("unseen: [ben]", "unseen: [ben, cy]"))
     assert main(["test", "spec", "--seeds", "0", "--workers", "1"]) == 1
     out = capsys.readouterr().out
     assert "solvable  FAIL" in out and "cy/eggs seed 0: salted" in out
@@ -120,6 +122,8 @@ def test_adapt_test_runs_the_solvability_check(spec, capsys):
 def test_new_skeletons_validate(spec, kind, capsys):
     assert main(["new", kind, "zoe", "--spec", "spec"]) == 0
     path = spec / ("personas" if kind == "persona" else "tasks") / "zoe.yaml"
+    if kind == "persona":
+        assert "unseen: [ana, zoe]" in (spec / "splits.yaml").read_text()  # every persona is unseen once
     assert "TODO" in path.read_text() and path.read_text().startswith("#")
     domain, diags = compile_spec([spec])
     assert domain is not None, [d.render() for d in diags]

@@ -44,6 +44,7 @@ def broken(tmp_path, monkeypatch):
     spec = tmp_path / "spec"
     shutil.copytree(SMALL, spec)
     (spec / "personas" / "zed.yaml").write_text(BROKEN)
+    (spec / "splits.yaml").write_text((spec / "splits.yaml").read_text().replace("[ben]", "[ben, zed]"))
     (tmp_path / "actions.txt").write_text("Look for eggs\n")
     monkeypatch.chdir(tmp_path)
     return spec

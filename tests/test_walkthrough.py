@@ -39,7 +39,7 @@ def extended(tmp_path_factory):
     spec = tmp_path_factory.mktemp("walk") / "spec"
     shutil.copytree(ROOT / "spec", spec)
     for rel, text in walkthrough_files().items():
-        assert not (spec / rel).exists(), f"the walk-through adds files; {rel} exists"
+        assert rel == "splits.yaml" or not (spec / rel).exists(), f"the walk-through adds files; {rel} exists"
         (spec / rel).parent.mkdir(parents=True, exist_ok=True)
         (spec / rel).write_text(text)
     return spec
@@ -48,7 +48,14 @@ def extended(tmp_path_factory):
 def test_the_walkthrough_shows_objects_tasks_a_persona_and_fixtures():
     files = walkthrough_files()
     kinds = {rel.split("/")[0] for rel in files}
-    assert {"objects", "tasks", "personas", "fixtures"} <= kinds, sorted(files)
+    assert {"objects", "tasks", "personas", "fixtures", "splits.yaml"} <= kinds, sorted(files)
+
+
+def test_the_walkthrough_only_adds_zoe_to_the_splits():
+    old = (ROOT / "spec" / "splits.yaml").read_text()
+    new = walkthrough_files()["splits.yaml"]
+    strip = [ln.replace(", zoe", "") for ln in new.splitlines()]
+    assert [ln for ln in old.splitlines() if not ln.startswith("#")] == strip and ", zoe" in new
 
 
 def test_the_extension_validates(extended):

@@ -25,7 +25,7 @@ def _cmd_test(args) -> int:
 
 
 def _cmd_new(args) -> int:
-    from .authoring import skeleton_path, skeleton_text
+    from .authoring import add_to_splits, skeleton_path, skeleton_text
 
     try:
         path, text = skeleton_path(args.spec, args.kind, args.id), skeleton_text(args.spec, args.kind, args.id)
@@ -41,6 +41,10 @@ def _cmd_new(args) -> int:
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(text)
     print(f"wrote {path}: fill in the TODOs, then `adapt validate {args.spec}`")
+    if args.kind == "persona":
+        note = add_to_splits(args.spec, args.id)
+        if note:
+            print(note)
     return 0
 
 
@@ -97,7 +101,8 @@ def add_commands(sub) -> None:
     p.set_defaults(func=_cmd_test, spec=None)
 
     p = sub.add_parser("new", help="write a commented skeleton of a persona or a task that validates",
-                       description="`adapt new persona ID` writes spec/personas/ID.yaml; `adapt new task ID` "
+                       description="`adapt new persona ID` writes spec/personas/ID.yaml (and adds ID to the split with the "
+                                   "fewest unseen personas in spec/splits.yaml); `adapt new task ID` "
                                    "writes spec/tasks/ID.yaml (a task and its component, a recipe to fill in). Both validate as "
                                    "written; fill in the TODOs.")
     p.add_argument("kind", choices=["persona", "task"], help="what to create")

@@ -11,6 +11,8 @@ A case is one YAML file, named after the code it shows:
     latin1: {...}                 # the same, written as Latin-1 (for encoding errors)
     replace:                      # optional: edits of files of the copy, [old, new] each
       tasks/recipes.yaml: [["default: butter", "default: lard"]]
+    delete: [engine.yaml]         # optional: files of the copy to remove
+    mkdir: [empty]                # optional: directories to create next to the copy
     dirs: [spec, other]           # optional: the directories compiled (default: [spec])
 
 A code added to docs/errors.md needs a case here; the test below names the codes that have none.
@@ -47,6 +49,10 @@ def build_case(case: dict, tmp: Path) -> list:
         for rel, text in (case.get(key) or {}).items():
             (spec / rel).parent.mkdir(parents=True, exist_ok=True)
             (spec / rel).write_bytes(text.encode(enc))
+    for rel in case.get("delete") or ():
+        (spec / rel).unlink()
+    for rel in case.get("mkdir") or ():
+        (tmp / rel).mkdir(parents=True)
     for rel, edits in (case.get("replace") or {}).items():
         text = (spec / rel).read_text()
         for old, new in edits:

@@ -2,7 +2,7 @@
 that carry the spec's declared names for editor completion."""
 
 from .schemas import schemas
-from .skeletons import skeleton_path, skeleton_text
+from .skeletons import add_to_splits, skeleton_path, skeleton_text
 from .vocab import vocabulary
 
-__all__ = ["schemas", "skeleton_path", "skeleton_text", "vocabulary"]
+__all__ = ["add_to_splits", "schemas", "skeleton_path", "skeleton_text", "vocabulary"]

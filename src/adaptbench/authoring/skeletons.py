@@ -86,3 +86,24 @@ components:
 #     steps:
 #       - Move {{plate}} to table_0
 """
+
+
+_UNSEEN = re.compile(r"^(?P<head>.*\bunseen:\s*\[)(?P<ids>[^\]]*)(?P<tail>\].*)$")
+
+
+def add_to_splits(spec, ident: str) -> str:
+    """Put a new persona in the split with the fewest unseen personas (every persona is unseen in exactly one
+    split, D602), editing spec/splits.yaml in place; returns what was done, or what the author must do."""
+    path = Path(spec) / "splits.yaml"
+    if not path.is_file():
+        return ""
+    lines = path.read_text().splitlines(keepends=True)
+    found = [(len([x for x in m["ids"].split(",") if x.strip()]), i, m) for i, line in enumerate(lines)
+             if (m := _UNSEEN.match(line.rstrip("\n")))]
+    if not found:
+        return f"add {ident} to the `unseen` list of one split in {path} (every persona is unseen in exactly one)"
+    _, i, m = min(found, key=lambda f: (f[0], f[1]))
+    ids = m["ids"].rstrip()
+    lines[i] = f"{m['head']}{ids}{', ' if ids.strip() else ''}{ident}{m['tail']}\n"
+    path.write_text("".join(lines))
+    return f"added {ident} to the unseen personas of a split in {path} (line {i + 1})"
