@@ -75,3 +75,15 @@ def test_yaml_errors_carry_a_hint(broken, capsys):
     assert main(["check-solvable", "--spec", "spec"]) == 1
     err = capsys.readouterr().err
     assert "error[S000]" in err and "must be quoted" in err
+
+
+def test_eval_with_splits_reports_spec_errors(broken, capsys):
+    """`adapt eval` reads the spec only for records of trained agents (they carry a `split`)."""
+    import json
+
+    rec = {"agent": "x", "persona": "ana", "task": "eggs", "seed": 0, "satisfaction_rate": 1.0, "questions": 2,
+           "split": 0}
+    (broken.parent / "runs.jsonl").write_text(json.dumps(rec) + "\n")
+    assert main(["eval", "runs.jsonl", "--spec", "spec"]) == 1
+    err = capsys.readouterr().err
+    assert LOCATED in err and "error[D104]" in err and "Traceback" not in err
