@@ -104,6 +104,8 @@ def rule_names(domain: CompiledDomain, persona: Persona, task: Task) -> set:
             out |= set(style.words) | set(style.verbs)
             if style.rule is not None:
                 out |= {n.name for n in A.walk(style.rule) if isinstance(n, A.ClsName)}
+            for alt in style.process:  # the classes a process is about (`food: ice` for iced)
+                out |= {v.strip() for k, val in alt if k in ("food", "with") for v in str(val).split("|")}
     return out
 
 
