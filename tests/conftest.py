@@ -2,7 +2,7 @@
 golden-file handling.
 
 Tests of the shipped paper spec are marked `paper` (automatically: every test that uses `domain`, or whose
-module's SPEC is spec/): `pytest -m "not paper"` runs the engine tests alone, on tests/spec_small and on
+module's SPEC is spec/): `pytest -m "not paper and not slow"` runs the engine tests alone, on tests/spec_small and on
 specs the tests write, so an extension of spec/ can only break the `paper` tests about it."""
 
 from __future__ import annotations
