@@ -169,14 +169,19 @@ class Executor:
         if choice.multi:
             out = tuple(v for v in chosen if v == "none" or self.usable(v, needs.get(v, ())))
         else:
-            exclusive = key.split(".")[0] != PLAN  # a pan, plate or cup belongs to one choice only
+            exclusive = key.split(".")[0] != PLAN  # a plate or cup belongs to one choice only
             order = [v for v in [chosen] + self._fallbacks(choice, chosen)
-                     if not (exclusive and self.vessels.get(v, key) != key)]
+                     if not (exclusive and not self._reusable(v) and self.vessels.get(v, key) != key)]
             out = next((v for v in order if v == "none" or self.usable(v, needs.get(v, ()))), chosen)
             if exclusive and self._movable(out):
                 self.vessels[out] = key
         self.resolved[key] = out
         return out
+
+    def _reusable(self, value: str) -> bool:
+        """Cookware is emptied onto a plate before the next recipe runs, so recipes may share a pan."""
+        spec = self.domain.entity.get(value)
+        return spec is not None and "cookware" in spec.tags
 
     def _movable(self, value: str) -> bool:
         spec = self.domain.entity.get(value)

@@ -207,7 +207,7 @@ def _check_styles(draft: Draft, names: Names) -> None:
 
 def _check_process(draft: Draft, style: str, alt: dict, names: Names) -> None:
     pools = {"food": ("class", names.classes), "with": ("class", names.classes)}
-    for key in ("before_heat", "not_before_heat", "while_hot", "not_while_hot"):
+    for key in ("before_heat", "not_before_heat", "while_hot", "not_while_hot", "made_by"):
         pools[key] = ("verb group", names.verb_groups)
     for key, (what, known) in pools.items():
         for name in alt.get(key, "").split("|"):
@@ -240,8 +240,19 @@ def _check_rule(draft: Draft, rule: A.Rule, context: str, names: Names, slots: d
     for node in A.walk(rule):
         if isinstance(node, A.Pred):
             errors.extend(_check_pred(node, context, names, slots or {}, rule.scope is not None))
+        elif isinstance(node, A.Each):
+            errors.extend(_check_each(node, context, names, rule.scope is not None))
     for node, code, msg in errors:
         draft.error(Where(rule.file, node.line, node.col), code, msg)
+
+
+def _check_each(node: A.Each, context: str, names: Names, scoped: bool) -> list:
+    if context != "preference":
+        return [(node, "D108", f"'each' cannot be used in a {context} rule")]
+    out = list(_check_subject(node, node.subject, context, names, {}, scoped))
+    if node.cls is not None:
+        out += _check_cls(node.cls, ("name", names.classes))
+    return out
 
 
 def _check_pred(node: A.Pred, context: str, names: Names, slots: dict, scoped: bool) -> list:

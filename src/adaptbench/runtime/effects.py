@@ -190,9 +190,43 @@ def _heat_node(world: World, node, vessels) -> None:
 def _heat_entity(world: World, eid: str) -> None:
     vessels = [eid, *world.ancestors(eid)]
     if eid in world.nodes:
-        _heat_node(world, world.nodes[eid], vessels)
+        node = world.nodes[eid]
+        _heat_node(world, node, vessels)
+        if _in_water(world, world.parent.get(eid)):
+            node.wet += (world.step,)  # a whole egg in a pot of water: boiled in its shell
     for n in world.contents.get(eid, ()):
         _heat_node(world, n, vessels)
+
+
+def _in_water(world: World, holder: str | None) -> bool:
+    """Whether `holder` holds water (an object in it sits in water)."""
+    return holder is not None and any(n.category == "water" for n in world.contents.get(holder, ()))
+
+
+# Where a thing put in is chilled (issue 6, item 5: a drink cooled in the fridge is not hot). The
+# furniture categories are engine vocabulary until spec/ can name them.
+_COLD = frozenset(("fridge", "freezer"))
+
+
+_COLD_IDS: dict = {}  # id(domain) -> (domain, the catalogue ids of cold furniture)
+
+
+def _is_cold(world: World, target: str) -> bool:
+    domain = world.domain
+    hit = _COLD_IDS.get(id(domain))
+    if hit is None or hit[0] is not domain:
+        hit = _COLD_IDS[id(domain)] = (domain, frozenset(e.id for e in domain.entities if e.category in _COLD))
+    cold = hit[1]
+    return bool(cold) and (target in cold or any(a in cold for a in world.ancestors(target)))
+
+
+def _chill_entity(world: World, eid: str) -> None:
+    """Everything edible in or on `eid` (and `eid` itself) was chilled now."""
+    for e in (eid, *world.descendants(eid)):
+        if e in world.nodes:
+            world.nodes[e].chilled += (world.step,)
+        for n in world.contents.get(e, ()):
+            n.chilled += (world.step,)
 
 
 def heat(world: World, params: dict, b: dict, ctx) -> None:
@@ -230,16 +264,21 @@ def move(world: World, params: dict, b: dict, ctx) -> None:
     ref, target = _arg(params, b, "item"), _ent(params, b, "target")
     if ref.kind == "entity":
         world.relocate(ref.value, target)
+        if _is_cold(world, target):
+            _chill_entity(world, ref.value)
         return
-    _into(world, target, ref.value)
-    world.put_contents(target, world.take_contents(ref.holder, ref.value))
+    pour(world, params, b, ctx)
 
 
 def pour(world: World, params: dict, b: dict, ctx) -> None:
     """Pour a content from one container into another."""
     ref, target = _arg(params, b, "item"), _ent(params, b, "target")
     _into(world, target, ref.value)
-    world.put_contents(target, world.take_contents(ref.holder, ref.value))
+    nodes = world.take_contents(ref.holder, ref.value)
+    world.put_contents(target, nodes)
+    if _is_cold(world, target):
+        for n in nodes:
+            n.chilled += (world.step,)
 
 
 def _applies(world: World, flag: str | None, verb: str) -> bool:

@@ -18,7 +18,7 @@ class Node:
     """One edible thing's provenance record (mutable during the episode)."""
 
     __slots__ = ("nid", "name", "category", "tags", "inputs", "verb", "created", "heated", "cut",
-                 "vessels", "arrived", "entity")
+                 "vessels", "arrived", "entity", "wet", "chilled")
 
     def __init__(self, nid, name, category, tags, inputs=(), verb=None, created=0, entity=None):
         self.nid = nid
@@ -29,6 +29,8 @@ class Node:
         self.verb = verb
         self.created = created
         self.heated: list = []  # steps at which it was heated
+        self.wet: tuple = ()  # steps at which it was heated whole in water (an egg boiled in its shell)
+        self.chilled: tuple = ()  # steps at which it was put in a fridge or freezer
         self.cut = False
         self.vessels: set = set()  # entity ids it was heated or made in
         self.arrived = created  # last step it was put into a container
@@ -187,8 +189,10 @@ class World:
 
     # ---- changes
     def relocate(self, eid: str, target: str) -> None:
-        """Move entity `eid` into/onto `target`."""
+        """Move entity `eid` into/onto `target` (where it already is: nothing changes, it does not re-arrive)."""
         old = self.parent.get(eid)
+        if old == target:
+            return
         if old is not None:
             self.children[old].remove(eid)
         self.parent[eid] = target
