@@ -9,6 +9,7 @@ step's completion and statistics, and are appended to the same results file (res
 
 from __future__ import annotations
 
+import traceback
 from pathlib import Path
 
 from ..harness.policy import Decision, Turn, View
@@ -39,6 +40,7 @@ class Running:
         self.layout = env.reset()
         self.history: list = []
         self.steps: list = []
+        self.error = None  # (message, traceback) when a step raised
 
     def view(self) -> View:
         """What the agent sees now."""
@@ -58,6 +60,12 @@ def max_steps(policy) -> int:
     """The step budget: always-ask gets 1 + 1/N more steps (N: its question interval)."""
     every = policy.config().get("every")
     return int(MAX_STEPS * (1 + 1 / every)) if every else MAX_STEPS
+
+
+def _error(ep: Running, config: dict, spec_hash: str) -> dict:
+    j = ep.job
+    return {"agent": j.agent, "agent_config": config, "persona": j.persona, "task": j.task, "seed": j.seed,
+            "spec_hash": spec_hash, "error": ep.error[0], "traceback": ep.error[1]}
 
 
 def _record(ep: Running, config: dict, spec_hash: str) -> dict:
@@ -90,14 +98,17 @@ def run_batched(jobs, domain, policy, make_user, batch: int = 16, config: dict |
             running.append(ep)
         if config is None:
             config = {**policy.config(), **_user_config(running[0].user)}
-        live = [ep for ep in running if not ep.env.done]
+        live = [ep for ep in running if not ep.env.done and ep.error is None]
         if live:
             for ep, d in zip(live, policy.act_batch([ep.view() for ep in live]), strict=True):
-                ep.apply(d if isinstance(d, Decision) else Decision(str(d)))
-        for ep in [ep for ep in running if ep.env.done]:
+                try:
+                    ep.apply(d if isinstance(d, Decision) else Decision(str(d)))
+                except Exception as exc:  # noqa: BLE001 - one episode's bug must not end the run
+                    ep.error = (f"{type(exc).__name__}: {exc}", traceback.format_exc())
+        for ep in [ep for ep in running if ep.env.done or ep.error is not None]:
             running.remove(ep)
             getattr(policy, "end", lambda _e: None)(ep.id)
-            yield _record(ep, config, domain.spec_hash)
+            yield _record(ep, config, domain.spec_hash) if ep.error is None else _error(ep, config, domain.spec_hash)
 
 
 def _user_config(user) -> dict:
