@@ -95,6 +95,9 @@ def _load_runs(args):
         raise SystemExit(1)
     if runs.skipped:
         print(f"adapt: {runs.skipped_text()}", file=sys.stderr)
+    if runs.unversioned:
+        print(f"adapt: note: {runs.unversioned} record(s) predate versioned records (read as version 0)",
+              file=sys.stderr)
     if not runs.records:
         print(f"adapt: no usable episode records in {', '.join(args.runs)}", file=sys.stderr)
         raise SystemExit(1)
@@ -126,7 +129,7 @@ def _cmd_eval(args) -> int:
     records = _load_runs(args).records
     rows, text, csv_text, md_text = _tables(args, records)
     print(text)
-    none = sum(1 for r in records if r.get("satisfaction_rate") is None)
+    none = sum(1 for r in records if r.satisfaction_rate is None)
     if none and not args.by:
         print(f"{none} episode(s) had no applicable preference and are left out of the satisfaction rates")
     if args.plot:

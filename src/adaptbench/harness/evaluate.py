@@ -31,29 +31,29 @@ def mean_se(values: list) -> tuple:
     return m, math.sqrt(var / n)
 
 
-def split_of(record: dict) -> list:
-    """(column, record) pairs: a record with a `split` is seen or unseen in that split; an untrained
-    agent's record counts in both columns (every persona is seen in three splits and unseen in one)."""
-    if "split" in record:
-        unseen = record["persona"] in UNSEEN[int(record["split"])]
+def split_of(record) -> list:
+    """The columns an `EpisodeRecord` counts in: a record with a `split` is seen or unseen in that split;
+    an untrained agent's record counts in both (every persona is seen in three splits and unseen in one)."""
+    if record.split is not None:
+        unseen = record.persona in UNSEEN[record.split]
         return ["unseen" if unseen else "seen"]
     return ["seen", "unseen"]
 
 
 def table(records: list) -> list:
-    """Rows: agent, n, rate seen/unseen (mean, se), questions seen/unseen (mean, se)."""
-    agents = sorted({r["agent"] for r in records}, key=lambda a: _order(a))
+    """Rows of `EpisodeRecord`s: agent, n, rate seen/unseen (mean, se), questions seen/unseen (mean, se)."""
+    agents = sorted({r.agent for r in records}, key=lambda a: _order(a))
     rows = []
     for a in agents:
         cols = {"seen": ([], []), "unseen": ([], [])}
         for r in records:
-            if r["agent"] != a:
+            if r.agent != a:
                 continue
             for col in split_of(r):
-                if r["satisfaction_rate"] is not None:
-                    cols[col][0].append(r["satisfaction_rate"])
-                cols[col][1].append(r["questions"])
-        n = sum(1 for r in records if r["agent"] == a)
+                if r.satisfaction_rate is not None:
+                    cols[col][0].append(r.satisfaction_rate)
+                cols[col][1].append(r.questions)
+        n = sum(1 for r in records if r.agent == a)
         rows.append({"agent": a, "episodes": n,
                      "rate_seen": mean_se(cols["seen"][0]), "rate_unseen": mean_se(cols["unseen"][0]),
                      "questions_seen": mean_se(cols["seen"][1]), "questions_unseen": mean_se(cols["unseen"][1])})

@@ -39,7 +39,7 @@ def _color(rate: float) -> str:
 
 
 def _heatmap(records: list, agents: list, top: int) -> tuple[list, int]:
-    personas = sorted({r["persona"] for r in records})
+    personas = sorted({r.persona for r in records})
     out = [f'<text x="10" y="{top}" font-weight="bold">Satisfaction by persona</text>']
     y0 = top + 14
     cell_w = min(120, (W - 160) // max(1, len(agents)))
@@ -49,8 +49,8 @@ def _heatmap(records: list, agents: list, top: int) -> tuple[list, int]:
     for p in personas:
         out.append(f'<text x="10" y="{y + 14}" font-size="12">{escape(p)}</text>')
         for j, a in enumerate(agents):
-            rates = [r["satisfaction_rate"] for r in records
-                     if r["persona"] == p and r["agent"] == a and r["satisfaction_rate"] is not None]
+            rates = [r.satisfaction_rate for r in records
+                     if r.persona == p and r.agent == a and r.satisfaction_rate is not None]
             m = mean_se(rates)[0]
             x = 150 + j * cell_w
             fill, label = ("#dddddd", "n/a") if m is None else (_color(m), f"{m:.0%}")

@@ -24,6 +24,7 @@ class RuntimeIndex:
     grammar: GrammarIndex
     parser: ActionParser
     checks: dict  # action id -> ((check, failure message), ...)
+    substances_by_category: dict  # category -> (substance id, ...) in spec order
 
 
 def build_runtime_index(domain: CompiledDomain) -> RuntimeIndex:
@@ -31,7 +32,11 @@ def build_runtime_index(domain: CompiledDomain) -> RuntimeIndex:
     grammar = domain.derived("grammars.index", build_index)
     checks = {a.id: tuple((compile_check(p.check, dict(a.slots)), p.fail) for p in a.preconditions)
               for a in domain.actions}
-    return RuntimeIndex(domain, grammar, ActionParser(grammar), checks)
+    by_category: dict = {}
+    for s in domain.substances:
+        by_category.setdefault(s.category, []).append(s.id)
+    return RuntimeIndex(domain, grammar, ActionParser(grammar), checks,
+                        {c: tuple(ids) for c, ids in by_category.items()})
 
 
 def runtime_index(domain: CompiledDomain) -> RuntimeIndex:
