@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 from ..compiler.model import CompiledDomain, Recipe, Task
 from ..runtime.env import Env
-from ..runtime.index import runtime_index
+from ..runtime.tables import domain_tables
 
 PLAN = "plan"
 _VAR = re.compile(r"\{(src:)?(\w+)\}")
@@ -64,8 +64,8 @@ def _order(domain: CompiledDomain, recipes: list, order: str) -> list:
 
 
 def _by_category(domain: CompiledDomain) -> dict:
-    """Substance ids by category (from the domain's runtime index, built once per domain)."""
-    return runtime_index(domain).substances_by_category
+    """Substance ids by category (from the domain's tables, built once per domain)."""
+    return domain_tables(domain).substances_by_category
 
 
 class Executor:

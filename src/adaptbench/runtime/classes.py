@@ -33,15 +33,10 @@ def node_matcher(cls):
     raise TypeError(cls)
 
 
-_ROOMS: dict = {}
-
-
 def _rooms(domain) -> frozenset:
-    hit = _ROOMS.get(id(domain))
-    if hit is None or hit[0] is not domain:
-        hit = (domain, frozenset(e.id for e in domain.entities if e.kind == "room"))
-        _ROOMS[id(domain)] = hit
-    return hit[1]
+    from .tables import domain_tables
+
+    return domain_tables(domain).rooms
 
 
 def entity_matcher(cls):

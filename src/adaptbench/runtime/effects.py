@@ -62,7 +62,6 @@ def _query_words(query: str) -> frozenset:
 
 
 _GENERIC = {"movable", "container", "source", "edible", "food"}
-_INDEX: dict = {}
 
 
 def _static_keys(spec, domain) -> frozenset:
@@ -80,18 +79,20 @@ def _static_keys(spec, domain) -> frozenset:
 
 
 def _index(domain) -> tuple:
-    """(entity -> keys, key -> catalogue movables) for a domain, built once."""
-    index = _INDEX.get(id(domain))
-    if index is None or index[0] is not domain:
+    """(domain, entity -> keys, key -> catalogue entities), built once into the domain's tables."""
+    from .tables import domain_tables
+
+    tables = domain_tables(domain)
+    if not tables.search_keys:
         keys = {e.id: _static_keys(e, domain) for e in domain.entities}
         inverted: dict = {}
         for e in domain.entities:
             if e.kind != "room":  # appliances and furniture too: `Look for kettle`
                 for k in keys[e.id]:
                     inverted.setdefault(k, []).append(e.id)
-        index = (domain, keys, inverted)
-        _INDEX[id(domain)] = index
-    return index
+        tables.search_index.update(inverted)
+        tables.search_keys.update(keys)
+    return domain, tables.search_keys, tables.search_index
 
 
 def _search_keys(world: World, eid: str) -> frozenset:

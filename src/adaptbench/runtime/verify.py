@@ -161,22 +161,18 @@ class Ctx:
         return self.kind(dish, comp) in targets
 
 
-_COMPILED: dict = {}
 _KINDS = frozenset(("sweet", "savory"))
 
 
 def compiled(domain: CompiledDomain, rule: A.Rule, part: str = "expr"):
     """A rule's expression (or its scope condition, `part="cond"`) compiled to `f(ctx, it) -> Outcome`.
 
-    Cached by rule identity: compiled domains are immutable and long-lived.
+    Cached in the domain's tables (an LRU keyed by the rule's value).
     """
-    key = (id(rule), part)
-    hit = _COMPILED.get(key)
-    if hit is None or hit[0] is not rule:
-        node = rule.expr if part == "expr" else rule.scope.cond
-        hit = (rule, _expr(node, domain))
-        _COMPILED[key] = hit
-    return hit[1]
+    from .tables import domain_tables
+
+    node = rule.expr if part == "expr" else rule.scope.cond
+    return domain_tables(domain).rules.get_or_build((rule, part), lambda: _expr(node, domain))
 
 
 def _expr(node, domain):
@@ -395,7 +391,10 @@ def _p_served_before(node: A.Pred, domain):
 
 
 def _p_available(node: A.Pred, domain):
+    from .tables import domain_tables
+
     item, text = node_matcher(node.args[0]), render(node.args[0])
+    available = domain_tables(domain).available  # (predicate, scene) -> bool: a property of the scene
 
     def in_scene(d: CompiledDomain, present) -> bool:
         for eid in present:
@@ -408,10 +407,7 @@ def _p_available(node: A.Pred, domain):
 
     def check(ctx, it):
         scene = ctx.world.scene
-        key = (id(node), scene.scene_id)
-        ok = _AVAILABLE.get(key)
-        if ok is None:
-            ok = _AVAILABLE[key] = in_scene(ctx.domain, scene.present)
+        ok = available.get_or_build((node, scene.scene_id), lambda: in_scene(ctx.domain, scene.present))
         return Outcome(ok, f"{text} is {'' if ok else 'not '}available")
     return check
 
@@ -422,7 +418,6 @@ def _entity_node(domain: CompiledDomain, eid: str) -> Node:
     return Node(0, eid, e.category, frozenset(e.tags), entity=eid)
 
 
-_AVAILABLE: dict = {}  # (predicate, scene) -> bool: availability is a property of the sampled scene
 
 
 @lru_cache(maxsize=1024)
