@@ -12,6 +12,7 @@ from . import ast as A
 from .build import Draft
 from .diagnostics import did_you_mean
 from .model import Where
+from .predicates import ops_for
 
 SLOT_TYPES = ("entity", "content", "thing", "query", "question", "result", "verb")
 
@@ -30,10 +31,9 @@ EFFECTS = {
     "done": (set(), set()),
 }
 
-PRE_OPS = {"is", "contains", "on", "within", "holds"}
-DISH_OPS = {"has", "has_no", "has_only", "is", "made_in", "made_with", "topped_with", "made_by", "cooked_in",
-            "adds_before", "count"}
-PREF_OPS = DISH_OPS | {"served_at", "served_in", "served_before", "available", "uses", "task_has", "made"}
+PRE_OPS = ops_for("precondition")  # each predicate's contexts are declared once, in predicates.py
+DISH_OPS = ops_for("dish")
+PREF_OPS = ops_for("preference")
 DISH_SUBJECTS = {"meal", "sides"}
 _SLOT_RE = re.compile(r"\{(\w+)\}")
 

@@ -12,6 +12,7 @@ from functools import lru_cache
 
 from ..compiler import ast as A
 from ..compiler.model import CompiledDomain, Task
+from ..compiler.predicates import evaluators
 from .classes import entity_matcher, node_matcher, render
 from .dishes import Dish, table
 from .styles import process_ok
@@ -458,11 +459,12 @@ def _p_made(node: A.Pred, domain):
     return check
 
 
-_PREDS = {"has": _p_has, "has_no": _p_has_no, "has_only": _p_has_only, "count": _p_count, "is": _p_is,
+_PREDS = evaluators("verdict", {  # registered by the names declared in compiler/predicates.py
+          "has": _p_has, "has_no": _p_has_no, "has_only": _p_has_only, "count": _p_count, "is": _p_is,
           "served_at": _p_served_at, "served_in": _p_served_in, "made_in": _p_made_in,
           "made_with": _p_made_with, "topped_with": _p_topped_with, "made_by": _p_made_by,
           "cooked_in": _p_cooked_in, "adds_before": _p_adds_before, "served_before": _p_served_before,
-          "available": _p_available, "uses": _p_uses, "task_has": _p_task_has, "made": _p_made}
+          "available": _p_available, "uses": _p_uses, "task_has": _p_task_has, "made": _p_made})
 
 
 from .verdicts import evaluate, verdict  # noqa: E402  (preference-level verdicts; re-exported here)
