@@ -260,7 +260,7 @@ class Executor:
 
     def _pick(self, category: str, vessel: str):
         seen = self.seen
-        for e in seen.known():
+        for e in sorted(seen.known()):
             if seen.category(e) == category and e not in self.taken and seen.parent(e) != vessel:
                 return e
         return None

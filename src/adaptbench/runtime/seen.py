@@ -23,9 +23,9 @@ class Seen:
         """Whether the agent has found entity `eid` (and it still exists)."""
         return eid in self._w.known
 
-    def known(self) -> list:
-        """The ids of every found entity, sorted."""
-        return sorted(self._w.known)
+    def known(self):
+        """The ids of every found entity (a set: iterate or test it, never change it)."""
+        return self._w.known
 
     def category(self, eid: str) -> str | None:
         """The category of a found entity (None when not found)."""

@@ -7,8 +7,9 @@
 - `scenes`: sampled scenes by (seed, full), an LRU; `world_templates`: what every episode on a scene
   starts from, an LRU by scene id;
 - `rules`: compiled rule expressions by (rule, part); `per_dish`: whether a rule's scope condition
-  is checked per dish; `available`: availability predicates by (predicate, scene id) — all LRUs, keyed
-  by the rule's value, so rules made outside the domain (tests, tools) are cached too, boundedly.
+  is checked per dish; `available`: availability predicates by (predicate, scene id) — bounded LRUs
+  keyed by the rule object (`IdentityLRU`), so rules made outside the domain (tests, tools) are
+  cached too, boundedly.
 
     tables = domain_tables(domain)     # light: no parser is built (see runtime.index for that)
 """
@@ -59,6 +60,23 @@ class LRU:
 _MISSING = object()
 
 
+class IdentityLRU(LRU):
+    """An LRU keyed by an object's identity plus an optional extra key, for values derived from
+    immutable objects that are expensive to hash by value (rule trees). Each entry holds the object
+    itself, so its id cannot be reused by another object while the entry lives, and the bound keeps
+    the table small: unlike a module cache keyed by `id()`, it is neither unbounded nor global."""
+
+    __slots__ = ()
+
+    def get_or_build(self, key, build, extra=None):
+        """The value derived from object `key` (and `extra`), built by `build()` on a miss."""
+        k = (id(key), extra)
+        hit = LRU.get(self, k)
+        if hit is not None and hit[0] is key:
+            return hit[1]
+        return self.put(k, (key, build()))[1]
+
+
 @dataclass(eq=False)
 class DomainTables:
     """The runtime's derived tables for one domain (see the module docstring)."""
@@ -70,9 +88,9 @@ class DomainTables:
     search_index: dict = field(default_factory=dict)
     scenes: LRU = field(default_factory=lambda: LRU(4096))
     world_templates: LRU = field(default_factory=lambda: LRU(1024))
-    rules: LRU = field(default_factory=lambda: LRU(4096))
-    per_dish: LRU = field(default_factory=lambda: LRU(4096))
-    available: LRU = field(default_factory=lambda: LRU(65536))
+    rules: IdentityLRU = field(default_factory=lambda: IdentityLRU(4096))
+    per_dish: IdentityLRU = field(default_factory=lambda: IdentityLRU(4096))
+    available: IdentityLRU = field(default_factory=lambda: IdentityLRU(65536))
 
 
 def build_tables(domain: CompiledDomain) -> DomainTables:

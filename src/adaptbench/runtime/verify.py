@@ -168,12 +168,12 @@ _KINDS = frozenset(("sweet", "savory"))
 def compiled(domain: CompiledDomain, rule: A.Rule, part: str = "expr"):
     """A rule's expression (or its scope condition, `part="cond"`) compiled to `f(ctx, it) -> Outcome`.
 
-    Cached in the domain's tables (an LRU keyed by the rule's value).
+    Cached in the domain's tables (a bounded LRU keyed by the rule object).
     """
     from .tables import domain_tables
 
     node = rule.expr if part == "expr" else rule.scope.cond
-    return domain_tables(domain).rules.get_or_build((rule, part), lambda: _expr(node, domain))
+    return domain_tables(domain).rules.get_or_build(rule, lambda: _expr(node, domain), part)
 
 
 def _expr(node, domain):
@@ -408,7 +408,7 @@ def _p_available(node: A.Pred, domain):
 
     def check(ctx, it):
         scene = ctx.world.scene
-        ok = available.get_or_build((node, scene.scene_id), lambda: in_scene(ctx.domain, scene.present))
+        ok = available.get_or_build(node, lambda: in_scene(ctx.domain, scene.present), scene.scene_id)
         return Outcome(ok, f"{text} is {'' if ok else 'not '}available")
     return check
 
