@@ -47,16 +47,17 @@ class Episode:
 
 
 def made(env: Env) -> tuple:
-    """The dishes made so far, as the planner's progress line names them: 'NAME in/on HOLDER from A, B'."""
+    """The dishes made so far, as the planner's progress line names them: 'NAME in HOLDER from A, B'
+    (results of the agent's actions, as contents of a container or as objects), in the order made."""
     w = env.world
-    out = []
-    for eid, node in w.nodes.items():
-        if node.verb is None or node.entity != eid:
-            continue
-        inputs = ", ".join(dict.fromkeys(n.name for n in node.inputs))
-        holder = w.parent.get(eid)
-        out.append(f"{node.name} in {holder}" + (f" from {inputs}" if inputs else ""))
-    return tuple(out)
+    found = [(node, holder) for holder, nodes in w.contents.items() for node in nodes if node.verb is not None]
+    found += [(node, w.parent.get(eid)) for eid, node in w.nodes.items() if node.verb is not None]
+    return tuple(_made_line(node, holder) for node, holder in sorted(found, key=lambda x: x[0].nid))
+
+
+def _made_line(node, holder) -> str:
+    inputs = ", ".join(dict.fromkeys(n.name for n in node.inputs))
+    return f"{node.name} in {holder}" + (f" from {inputs}" if inputs else "")
 
 
 def run_episode(policy: Policy, env: Env, episode: str = "episode") -> Episode:
