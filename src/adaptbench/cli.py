@@ -104,6 +104,26 @@ def main(argv=None) -> int:
         return 130
     except BrokenPipeError:
         return 0
+    except Exception as exc:  # noqa: BLE001 - the one place that turns expected failures into messages
+        return _report(exc)
+
+
+def _report(exc: Exception) -> int:
+    """Print a spec error's diagnostics or a file problem as a message; anything else is a bug and keeps
+    its traceback."""
+    from .compiler import SpecError
+
+    if isinstance(exc, SpecError):
+        print(str(exc), file=sys.stderr)
+        print("the spec has errors: run `adapt validate` for details", file=sys.stderr)
+        return 1
+    if isinstance(exc, OSError) and exc.filename:
+        print(f"adapt: {exc.filename}: {exc.strerror or exc}", file=sys.stderr)
+        return 1
+    if isinstance(exc, UnicodeDecodeError):
+        print(f"adapt: a file is not UTF-8 text ({exc.reason} at byte {exc.start})", file=sys.stderr)
+        return 1
+    raise exc
 
 
 if __name__ == "__main__":

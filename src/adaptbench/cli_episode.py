@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import json
 import sys
-from pathlib import Path
+
+from .cli_types import positive, read_lines, seed
 
 
 def _domain(args):
@@ -62,17 +63,12 @@ def _cmd_scene(args) -> int:
 
 
 def _read_actions(path: str) -> list:
-    text = sys.stdin.read() if path == "-" else Path(path).read_text()
-    return [ln.strip() for ln in text.splitlines() if ln.strip() and not ln.strip().startswith("#")]
+    return read_lines(path)
 
 
 def _cmd_replay(args) -> int:
     domain = _domain(args)
-    try:
-        actions = _read_actions(args.actions)
-    except OSError as exc:
-        print(f"adapt: cannot read {args.actions}: {exc.strerror}", file=sys.stderr)
-        return 2
+    actions = _read_actions(args.actions)
     env = _env(args, domain)
     env.reset()
     steps = []
@@ -134,7 +130,7 @@ def _common(p) -> None:
     add_spec_option(p)
     p.add_argument("--task", required=True, help="task id, e.g. eggs, toast_coffee")
     p.add_argument("--persona", required=True, help="persona id, e.g. juan, ron")
-    p.add_argument("--max-steps", type=int, default=50, help="step limit (default 50)")
+    p.add_argument("--max-steps", type=positive, default=50, help="step limit (default 50)")
 
 
 def add_commands(sub) -> None:
@@ -143,7 +139,7 @@ def add_commands(sub) -> None:
                        description="Sample the scene for a seed (every room, furniture and mandatory object; "
                                    "other movables with p=0.7) and print it.")
     add_spec_option(p)
-    p.add_argument("--seed", type=int, default=0, help="scene seed (default 0)")
+    p.add_argument("--seed", type=seed, default=0, help="scene seed (default 0)")
     p.add_argument("--full", action="store_true", help="include every object")
     p.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(func=_cmd_scene)
@@ -152,7 +148,7 @@ def add_commands(sub) -> None:
                        description="Type actions (e.g. 'Look for eggs', 'Ask \"How do you like your eggs?\"'); "
                                    "'Declare Done' ends the episode and prints the verdicts.")
     _common(p)
-    p.add_argument("--seed", type=int, default=0, help="scene seed (default 0)")
+    p.add_argument("--seed", type=seed, default=0, help="scene seed (default 0)")
     p.add_argument("--full-scene", action="store_true", help="include every object")
     p.set_defaults(func=_cmd_play)
 
@@ -161,7 +157,7 @@ def add_commands(sub) -> None:
                                    "print every step and the preference verdicts.")
     _common(p)
     g = p.add_mutually_exclusive_group(required=True)
-    g.add_argument("--seed", type=int, help="scene seed")
+    g.add_argument("--seed", type=seed, help="scene seed")
     g.add_argument("--full-scene", action="store_true", help="include every object")
     p.add_argument("actions", metavar="ACTIONS_FILE", help="file with one action per line")
     p.add_argument("--json", action="store_true", help="print JSON: steps, preferences, satisfaction_rate, questions")

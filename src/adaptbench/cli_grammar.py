@@ -6,6 +6,7 @@ import sys
 from pathlib import Path
 
 from .cli_episode import _domain, _read_actions, add_spec_option
+from .cli_types import seed
 
 
 def _expected(args):
@@ -43,12 +44,7 @@ def _replay(args, domain):
     env = Env(domain, args.task, seed=None if args.full_scene else args.seed, full_scene=args.full_scene)
     env.reset()
     if args.after:
-        try:
-            actions = _read_actions(args.after)
-        except OSError as exc:
-            print(f"adapt: cannot read {args.after}: {exc.strerror}", file=sys.stderr)
-            raise SystemExit(2) from None
-        for text in actions:
+        for text in _read_actions(args.after):
             if env.done:
                 break
             env.step(text)
@@ -88,7 +84,7 @@ def add_commands(sub) -> None:
     add_spec_option(p)
     p.add_argument("--task", required=True, help="task id, e.g. eggs")
     scene = p.add_mutually_exclusive_group(required=True)
-    scene.add_argument("--seed", type=int, help="scene seed")
+    scene.add_argument("--seed", type=seed, help="scene seed")
     scene.add_argument("--full-scene", action="store_true", help="include every object")
     p.add_argument("--after", metavar="ACTIONS_FILE", help="actions to replay first (one per line, # comments)")
     p.add_argument("--level", choices=LEVELS, default="observed", help="syntax | observed (default) | typed")

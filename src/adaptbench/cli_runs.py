@@ -133,15 +133,31 @@ def _cmd_eval(args) -> int:
     if none and not args.by:
         print(f"{none} episode(s) had no applicable preference and are left out of the satisfaction rates")
     if args.plot:
-        from .harness.evaluate import table
-        from .harness.plots import svg
-
-        _write_out(args.plot, svg(rows if not args.by else table(records), records))
+        _plot(args.plot, rows if not args.by else _agent_rows(records), records)
     if args.csv:
         _write_out(args.csv, csv_text() + "\n")
     if args.markdown:
         _write_out(args.markdown, md_text() + "\n")
     return 0
+
+
+def _agent_rows(records: list) -> list:
+    from .harness.evaluate import table
+
+    return table(records)
+
+
+def _plot(path: str, rows: list, records: list) -> None:
+    from .harness.plots import PlotsUnavailable, draw
+
+    try:
+        draw(rows, records, Path(path))
+    except PlotsUnavailable as exc:
+        print(f"adapt: {exc}", file=sys.stderr)
+        raise SystemExit(1) from None
+    except (OSError, ValueError) as exc:
+        print(f"adapt: cannot write the plot {path} ({getattr(exc, 'strerror', None) or exc})", file=sys.stderr)
+        raise SystemExit(1) from None
 
 
 def _cmd_users_check(args) -> int:
@@ -198,7 +214,7 @@ def add_commands(sub) -> None:
     p.add_argument("runs", nargs="+", help="JSONL files written by adapt rollout")
     p.add_argument("--csv", help="also write the table as CSV")
     p.add_argument("--markdown", help="also write the table as Markdown")
-    p.add_argument("--plot", help="also draw satisfaction per agent and per persona as an SVG file")
+    p.add_argument("--plot", help="also draw satisfaction per agent and per persona (PNG, SVG or PDF by suffix; needs the plots extra)")
     p.add_argument("--by", choices=["task", "persona", "preference"],
                    help="break the results down per task, persona or preference instead of the seen/unseen table")
     p.add_argument("--allow-mixed", action="store_true",

@@ -41,6 +41,9 @@ class Counting(Policy):
     def end(self, episode):
         self.inner.end(episode)
 
+    def act(self, view):
+        return self.inner.act(view)
+
     def act_batch(self, views):
         self.rows.append(len(views))
         return self.inner.act_batch(views)
@@ -124,6 +127,9 @@ def test_made_lists_results_for_the_progress_line(domain):
 
 def test_act_batch_must_answer_every_row(domain):
     class Short(Policy):
+        def act(self, view):
+            return Decision("Declare Done")
+
         def act_batch(self, views):
             return []
 

@@ -56,13 +56,24 @@ def test_cli_rollout_then_eval(tmp_path, domain, capsys):
     assert md.read_text().startswith("| Method |")
 
 
-def test_eval_plot_is_valid_svg(tmp_path):
-    import xml.etree.ElementTree as ET
-
-    from adaptbench.harness.plots import svg
+def test_eval_plot_is_a_png_with_every_agent_and_persona(tmp_path):
+    from adaptbench.harness.plots import draw, persona_matrix
 
     recs = [EpisodeRecord(a, p, "eggs", 0, satisfaction_rate=r, questions=q)
             for a, r, q in (("never-ask", 0.3, 0), ("oracle", 0.9, 0)) for p in ("juan", "ron")]
-    root = ET.fromstring(svg(table(recs), recs))
-    texts = [t.text for t in root.iter("{http://www.w3.org/2000/svg}text")]
-    assert "oracle" in texts and "juan" in texts and "90%" in texts
+    recs.append(EpisodeRecord("oracle", "lisa", "eggs", 0, satisfaction_rate=None, questions=0))
+    out = tmp_path / "t.png"
+    draw(table(recs), recs, out)
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and out.stat().st_size > 5000
+    personas, grid = persona_matrix(recs, ["never-ask", "oracle"])
+    assert personas == ["juan", "lisa", "ron"]
+    assert grid[0] == [0.3, 0.9] and grid[1] == [None, None]
+
+
+def test_eval_plot_from_the_command_line(tmp_path, capsys):
+    recs = [{"agent": "oracle", "persona": "juan", "task": "cereal", "seed": 0, "satisfaction_rate": 1.0,
+             "questions": 0, "spec_hash": "x", "satisfied": [], "violated": []}]
+    f = tmp_path / "r.jsonl"
+    f.write_text("".join(__import__("json").dumps(r) + "\n" for r in recs))
+    assert main(["eval", str(f), "--plot", str(tmp_path / "t.svg")]) == 0
+    assert (tmp_path / "t.svg").read_text().lstrip().startswith("<?xml")

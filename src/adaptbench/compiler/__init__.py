@@ -51,6 +51,9 @@ def compile_spec(spec_dirs) -> tuple[CompiledDomain | None, list[Diagnostic]]:
     for d in dirs:
         if not d.is_dir():
             draft.diags.append(Diagnostic(str(d), 1, 1, "S003", "spec directory not found"))
+        elif not spec_files([d]):
+            draft.diags.append(Diagnostic(str(d), 1, 1, "S004", "no spec files here (expected objects/, actions/, "
+                                          "tasks/ and personas/ holding *.yaml files)"))
     for kind, path in spec_files(dirs):
         doc, diags = load_file(path, _display(path))
         draft.diags.extend(diags)

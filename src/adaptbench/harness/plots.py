@@ -1,69 +1,89 @@
-"""Dependency-free SVG plots of evaluation results: satisfaction per agent (with standard errors and
-questions asked) and a persona x agent heat map."""
+"""Plots of evaluation results with matplotlib (the `plots` extra): satisfaction per agent on seen and
+unseen personas with standard errors and the questions asked, and a persona x agent heat map.
+
+The file type follows the suffix (`.png`, `.svg`, `.pdf`); without matplotlib, `PlotsUnavailable` says
+how to install it.
+"""
 
 from __future__ import annotations
 
-from html import escape
+from pathlib import Path
 
 from .evaluate import mean_se
 
-W, BAR_H, GAP = 720, 26, 8
+INSTALL = "pip install 'adaptbench[plots]'"
 
 
-def _bars(rows: list, top: int) -> tuple[list, int]:
-    out = [f'<text x="10" y="{top}" font-weight="bold">Preference satisfaction (seen personas), ± s.e.</text>']
-    y = top + 14
-    for r in rows:
-        m, se = r["rate_seen"]
-        if m is None:
-            out.append(f'<text x="10" y="{y + 17}">{escape(r["agent"])}</text>')
-            out.append(f'<text x="150" y="{y + 17}">n/a (no applicable preference)</text>')
-            y += BAR_H + GAP
-            continue
-        width = max(0.0, m) * 480
-        out.append(f'<text x="10" y="{y + 17}">{escape(r["agent"])}</text>')
-        out.append(f'<rect x="150" y="{y}" width="{width:.1f}" height="{BAR_H}" fill="#4c78a8"/>')
-        lo, hi = 150 + max(0, m - se) * 480, 150 + min(1, m + se) * 480
-        out.append(f'<line x1="{lo:.1f}" y1="{y + BAR_H / 2}" x2="{hi:.1f}" y2="{y + BAR_H / 2}" stroke="black"/>')
-        q = r["questions_seen"][0] or 0.0
-        out.append(f'<text x="{150 + width + 8:.1f}" y="{y + 17}">{m:.1%} · {q:.1f} questions</text>')
-        y += BAR_H + GAP
-    return out, y
+class PlotsUnavailable(RuntimeError):
+    """matplotlib is not installed."""
 
 
-def _color(rate: float) -> str:
-    """White (0%) to blue (100%)."""
-    v = max(0.0, min(1.0, rate))
-    r, g = int(255 - 179 * v), int(255 - 135 * v)
-    return f"rgb({r},{g},{int(255 - 87 * v)})"
+def _pyplot():
+    try:
+        import matplotlib
+    except ImportError:
+        raise PlotsUnavailable(f"plots need matplotlib: {INSTALL}") from None
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
 
 
-def _heatmap(records: list, agents: list, top: int) -> tuple[list, int]:
+def _bars(ax, rows: list) -> None:
+    agents = [r["agent"] for r in rows]
+    width = 0.38
+    for k, (split, color) in enumerate((("seen", "#4c78a8"), ("unseen", "#f58518"))):
+        means = [r[f"rate_{split}"][0] for r in rows]
+        errs = [r[f"rate_{split}"][1] or 0.0 for r in rows]
+        xs = [i + (k - 0.5) * width for i in range(len(rows))]
+        ax.bar(xs, [m or 0.0 for m in means], width, yerr=errs, capsize=3, color=color, label=split)
+        for x, m, r in zip(xs, means, rows, strict=True):
+            q = r[f"questions_{split}"][0]
+            label = "n/a" if m is None else f"{m:.0%}\n{q or 0:.1f} q"
+            ax.text(x, (m or 0.0) + 0.03, label, ha="center", va="bottom", fontsize=8)
+    ax.set_xticks(range(len(rows)), agents)
+    ax.set_ylim(0, 1.25)
+    ax.set_ylabel("preference satisfaction")
+    ax.set_title("Satisfaction per agent (± s.e.; q = questions asked)")
+    ax.legend(loc="upper left", fontsize=8)
+
+
+def persona_matrix(records: list, agents: list) -> tuple[list, list]:
+    """(personas, rows of mean satisfaction per agent, None where no preference applied)."""
     personas = sorted({r.persona for r in records})
-    out = [f'<text x="10" y="{top}" font-weight="bold">Satisfaction by persona</text>']
-    y0 = top + 14
-    cell_w = min(120, (W - 160) // max(1, len(agents)))
-    for j, a in enumerate(agents):
-        out.append(f'<text x="{150 + j * cell_w + 4}" y="{y0 + 12}" font-size="11">{escape(a)}</text>')
-    y = y0 + 18
+    grid = []
     for p in personas:
-        out.append(f'<text x="10" y="{y + 14}" font-size="12">{escape(p)}</text>')
-        for j, a in enumerate(agents):
+        row = []
+        for a in agents:
             rates = [r.satisfaction_rate for r in records
                      if r.persona == p and r.agent == a and r.satisfaction_rate is not None]
-            m = mean_se(rates)[0]
-            x = 150 + j * cell_w
-            fill, label = ("#dddddd", "n/a") if m is None else (_color(m), f"{m:.0%}")
-            out.append(f'<rect x="{x}" y="{y}" width="{cell_w - 2}" height="18" fill="{fill}"/>')
-            out.append(f'<text x="{x + 4}" y="{y + 13}" font-size="11">{label}</text>')
-        y += 20
-    return out, y
+            row.append(mean_se(rates)[0])
+        grid.append(row)
+    return personas, grid
 
 
-def svg(rows: list, records: list) -> str:
-    """An SVG with the per-agent bars and the persona heat map."""
-    bars, y = _bars(rows, 24)
-    heat, y = _heatmap(records, [r["agent"] for r in rows], y + 28)
-    body = "\n".join(bars + heat)
-    return (f'<svg xmlns="http://www.w3.org/2000/svg" width="{W}" height="{y + 16}" font-family="sans-serif" '
-            f'font-size="13">\n<rect width="100%" height="100%" fill="white"/>\n{body}\n</svg>\n')
+def _heatmap(ax, records: list, agents: list) -> None:
+    personas, grid = persona_matrix(records, agents)
+    values = [[float("nan") if m is None else m for m in row] for row in grid]
+    ax.imshow(values, cmap="Blues", vmin=0, vmax=1, aspect="auto")
+    for i, row in enumerate(grid):
+        for j, m in enumerate(row):
+            text = "n/a" if m is None else f"{m:.0%}"
+            ax.text(j, i, text, ha="center", va="center", fontsize=8, color="white" if (m or 0) > 0.6 else "black")
+    ax.set_xticks(range(len(agents)), agents)
+    ax.set_yticks(range(len(personas)), personas)
+    ax.set_title("Satisfaction by persona")
+
+
+def draw(rows: list, records: list, path: Path) -> None:
+    """Write the per-agent bars and the persona heat map to `path` (type from its suffix)."""
+    plt = _pyplot()
+    agents = [r["agent"] for r in rows]
+    n_personas = len({r.persona for r in records})
+    fig, (top, bottom) = plt.subplots(2, 1, figsize=(max(6, 1.6 * len(agents) + 3), 4 + 0.32 * n_personas + 2),
+                                      gridspec_kw={"height_ratios": [4, max(2, 0.32 * n_personas)]})
+    _bars(top, rows)
+    _heatmap(bottom, records, agents)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)

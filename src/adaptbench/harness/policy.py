@@ -15,6 +15,7 @@ the user), records every step and hands the next `View` back. Batched policies (
 
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -64,8 +65,9 @@ class Decision:
     stats: dict = field(default_factory=dict)
 
 
-class Policy:
-    """Base class of every agent. Subclasses set `name` and implement `act` (or `act_batch`)."""
+class Policy(ABC):
+    """Base class of every agent. Subclasses set `name` and implement `act` (batched policies also
+    override `act_batch`)."""
 
     name = "policy"
 
@@ -76,13 +78,15 @@ class Policy:
     def start(self, episode: str, env) -> None:
         """Called once when an episode starts. Privileged policies (the oracle, the teacher) may plan
         from `env` here; every other policy must ignore it."""
+        return None  # noqa: B027 - most policies need no set-up
 
     def end(self, episode: str) -> None:
         """Called once when an episode has ended (Declare Done or the step limit): forget its state."""
+        return None  # noqa: B027 - most policies keep no state
 
+    @abstractmethod
     def act(self, view: View) -> Decision:
         """The next action for one episode."""
-        raise NotImplementedError
 
     def act_batch(self, views: Sequence[View]) -> list:
         """The next action for each of several episodes (one decision per view, in order)."""

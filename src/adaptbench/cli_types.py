@@ -1,0 +1,50 @@
+"""Argument types shared by the `adapt` commands: bad values are usage errors with a message."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+MAX_SEED = 2**63 - 1
+
+
+def seed(text: str) -> int:
+    """A scene seed: a whole number from 0."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{text}' is not a seed (a whole number >= 0)") from None
+    if not 0 <= value <= MAX_SEED:
+        raise argparse.ArgumentTypeError(f"seed {text} is out of range (0 to {MAX_SEED})")
+    return value
+
+
+def positive(text: str) -> int:
+    """A whole number >= 1 (a step limit, a count)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{text}' is not a whole number") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"{text} must be at least 1")
+    return value
+
+
+def read_lines(path: str) -> list:
+    """The non-blank, non-comment lines of a text file ('-' for stdin). Exits 2 with a message when the
+    file cannot be read or is not UTF-8 text."""
+    try:
+        text = sys.stdin.read() if path == "-" else Path(path).read_text(encoding="utf-8")
+    except IsADirectoryError:
+        _fail(f"{path} is a directory, not a file of actions")
+    except OSError as exc:
+        _fail(f"cannot read {path}: {exc.strerror}")
+    except UnicodeDecodeError as exc:
+        _fail(f"{path} is not UTF-8 text (byte {exc.start}: {exc.reason})")
+    return [ln.strip() for ln in text.splitlines() if ln.strip() and not ln.strip().startswith("#")]
+
+
+def _fail(message: str):
+    print(f"adapt: {message}", file=sys.stderr)
+    raise SystemExit(2)
