@@ -9,6 +9,7 @@ Modifiers `heated`/`chopped` need the path an ingredient took; node matchers the
 from __future__ import annotations
 
 from ..compiler import ast as A
+from .tables import domain_tables
 
 
 def node_matcher(cls):
@@ -34,8 +35,6 @@ def node_matcher(cls):
 
 
 def _rooms(domain) -> frozenset:
-    from .tables import domain_tables
-
     return domain_tables(domain).rooms
 
 

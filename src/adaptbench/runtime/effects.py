@@ -9,6 +9,7 @@ from functools import lru_cache
 from ..compiler.model import EntitySpec
 from .actions import ActionFailed, Ref
 from .observe import found
+from .tables import domain_tables
 from .world import World
 
 
@@ -80,8 +81,6 @@ def _static_keys(spec, domain) -> frozenset:
 
 def _index(domain) -> tuple:
     """(domain, entity -> keys, key -> catalogue entities), built once into the domain's tables."""
-    from .tables import domain_tables
-
     tables = domain_tables(domain)
     if not tables.search_keys:
         keys = {e.id: _static_keys(e, domain) for e in domain.entities}

@@ -14,6 +14,7 @@ import json
 from dataclasses import dataclass
 
 from ..compiler.model import CompiledDomain
+from .tables import domain_tables
 
 KEEP_PROBABILITY = 0.7
 
@@ -41,8 +42,6 @@ class Scene:
 def sample_scene(domain: CompiledDomain, seed: int | None = 0, full: bool = False) -> Scene:
     """Sample a scene reproducibly from `seed` (or include everything when `full`); memoised in the
     domain's tables (an LRU)."""
-    from .tables import domain_tables
-
     return domain_tables(domain).scenes.get_or_build((seed, full), lambda: _sample(domain, seed, full))
 
 

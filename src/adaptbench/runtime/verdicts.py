@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from ..compiler import ast as A
 from ..compiler.model import CompiledDomain, Persona, Task
+from .tables import domain_tables
 from .verify import _KINDS, Ctx, Evaluation, Outcome, Verdict, compiled
 from .world import World
 
@@ -61,8 +62,6 @@ def _results(ctx: Ctx, rule: A.Rule, comps: list, per_dish: bool) -> tuple:
 def _per_dish_cond(domain: CompiledDomain, rule: A.Rule) -> bool:
     """Whether the scope condition talks about the dish (`it`, `sides`): then it is checked per dish
     (cached in the domain's tables)."""
-    from .tables import domain_tables
-
     return domain_tables(domain).per_dish.get_or_build(rule, lambda: _condition_per_dish(rule))
 
 

@@ -16,6 +16,7 @@ from ..compiler.predicates import evaluators
 from .classes import entity_matcher, node_matcher, render
 from .dishes import Dish, table
 from .styles import process_ok
+from .tables import domain_tables
 from .world import Node, World
 
 
@@ -170,8 +171,6 @@ def compiled(domain: CompiledDomain, rule: A.Rule, part: str = "expr"):
 
     Cached in the domain's tables (a bounded LRU keyed by the rule object).
     """
-    from .tables import domain_tables
-
     node = rule.expr if part == "expr" else rule.scope.cond
     return domain_tables(domain).rules.get_or_build(rule, lambda: _expr(node, domain), part)
 
@@ -392,8 +391,6 @@ def _p_served_before(node: A.Pred, domain):
 
 
 def _p_available(node: A.Pred, domain):
-    from .tables import domain_tables
-
     item, text = node_matcher(node.args[0]), render(node.args[0])
     available = domain_tables(domain).available  # (predicate, scene) -> bool: a property of the scene
 

@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 
 from ..compiler.model import CompiledDomain, EntitySpec
 from .scene import Scene
+from .tables import domain_tables
 
 
 class Node:
@@ -66,8 +67,6 @@ class _Template:
 
 
 def _template(domain: CompiledDomain, scene: Scene) -> _Template:
-    from .tables import domain_tables
-
     return domain_tables(domain).world_templates.get_or_build(scene.scene_id, lambda: _build_template(domain, scene))
 
 
