@@ -63,7 +63,8 @@ def test_play_reads_actions_and_prints_verdicts(monkeypatch, capsys):
 def test_schema_writes_every_kind(tmp_path, capsys):
     assert main(["schema", "--out", str(tmp_path)]) == 0
     names = sorted(p.name for p in tmp_path.iterdir())
-    assert names == ["actions.schema.json", "objects.schema.json", "persona.schema.json", "tasks.schema.json"]
+    assert names == ["actions.schema.json", "engine.schema.json", "objects.schema.json", "persona.schema.json",
+                     "splits.schema.json", "tasks.schema.json"]
     assert json.loads((tmp_path / "persona.schema.json").read_text())["additionalProperties"] is False
 
 

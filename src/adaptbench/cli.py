@@ -46,11 +46,11 @@ def _cmd_validate(args) -> int:
 
 
 def _cmd_schema(args) -> int:
-    from .compiler.loader import KINDS, schema
+    from .compiler.loader import SCHEMA_KINDS, schema
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    for kind in sorted(set(KINDS.values())):
+    for kind in SCHEMA_KINDS:
         (out / f"{kind}.schema.json").write_text(json.dumps(schema(kind), indent=2) + "\n")
         print(out / f"{kind}.schema.json")
     return 0

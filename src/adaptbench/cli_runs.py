@@ -85,7 +85,7 @@ def _load_runs(args):
     from .harness.records import RunsError, load_runs, mixed_specs
 
     try:
-        runs = load_runs(args.runs)
+        runs = load_runs(args.runs, _splits(args))
     except RunsError as exc:
         print(f"adapt: {exc}", file=sys.stderr)
         raise SystemExit(exc.code) from None
@@ -104,6 +104,19 @@ def _load_runs(args):
     return runs
 
 
+def _splits(args):
+    """The domain's splits (split id -> unseen persona ids), loaded on first use: only records of trained
+    agents carry a `split`."""
+    from functools import cache
+
+    @cache
+    def unseen() -> dict:
+        from .compiler import load_domain
+
+        return load_domain(args.spec).unseen
+    return unseen
+
+
 def _tables(args, records: list) -> tuple:
     if args.by:
         from .harness import breakdown as b
@@ -113,7 +126,7 @@ def _tables(args, records: list) -> tuple:
                 lambda: b.render_markdown(rows, args.by))
     from .harness.evaluate import render_csv, render_markdown, render_text, table
 
-    rows = table(records)
+    rows = table(records, _splits(args)() if any(r.split is not None for r in records) else None)
     return rows, render_text(rows), lambda: render_csv(rows), lambda: render_markdown(rows)
 
 
@@ -133,7 +146,7 @@ def _cmd_eval(args) -> int:
     if none and not args.by:
         print(f"{none} episode(s) had no applicable preference and are left out of the satisfaction rates")
     if args.plot:
-        _plot(args.plot, rows if not args.by else _agent_rows(records), records)
+        _plot(args.plot, rows if not args.by else _agent_rows(args, records), records)
     if args.csv:
         _write_out(args.csv, csv_text() + "\n")
     if args.markdown:
@@ -141,10 +154,10 @@ def _cmd_eval(args) -> int:
     return 0
 
 
-def _agent_rows(records: list) -> list:
+def _agent_rows(args, records: list) -> list:
     from .harness.evaluate import table
 
-    return table(records)
+    return table(records, _splits(args)() if any(r.split is not None for r in records) else None)
 
 
 def _plot(path: str, rows: list, records: list) -> None:
@@ -210,8 +223,10 @@ def add_commands(sub) -> None:
 
     p = sub.add_parser("eval", help="print the paper's Table 1 from rollout files",
                        description="Preference satisfaction rate and questions asked (mean ± standard error) "
-                                   "for seen and unseen personas under the release's 4 cross-validation splits.")
+                                   "for seen and unseen personas under the cross-validation splits of spec/splits.yaml.")
     p.add_argument("runs", nargs="+", help="JSONL files written by adapt rollout")
+    p.add_argument("--spec", default="spec", help="spec directory whose splits.yaml defines seen/unseen personas "
+                                                  "(read only for records with a `split`; default: spec)")
     p.add_argument("--csv", help="also write the table as CSV")
     p.add_argument("--markdown", help="also write the table as Markdown")
     p.add_argument("--plot", help="also draw satisfaction per agent and per persona (PNG, SVG or PDF by suffix; needs the plots extra)")

@@ -73,3 +73,22 @@ def test_interpret_answers(domain):
     assert interpret(domain, milk, "I don't mind.") == milk.default[0]
     toppings = next(c for c in domain.recipe["cereal"].choices if c.id == "toppings")
     assert set(interpret(domain, toppings, "Strawberries and walnuts please")) >= {"strawberry", "raw_walnuts"}
+
+
+def test_a_component_without_recipe_is_said_not_skipped_silently(domain, capsys):
+    import dataclasses
+
+    from adaptbench.agents.plans import notes
+    from adaptbench.harness.rollout import _notes
+
+    d = dataclasses.replace(domain, recipes=tuple(r for r in domain.recipes if r.id != "toast"))
+    task = d.task["toast_coffee"]
+    assert notes(d, task) == ["no recipe for component toast: the scripted agents skip it"]
+    assert _notes(d, task) == notes(d, task) and notes(domain, task) == []
+    persona = _zed(d)
+    env = Env(d, task="toast_coffee", persona=persona, seed=0, user=OfflineUser(d, persona, task))
+    env.reset()
+    play("never-ask", env)
+    play("never-ask", env)
+    err = capsys.readouterr().err
+    assert err.count("no recipe for component toast") == 1  # once per domain, on stderr

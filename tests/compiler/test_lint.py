@@ -47,3 +47,32 @@ def test_shipped_personas_lint_clean_of_errors(domain):
 
     _, diags = compile_spec([SPEC])
     assert not [d for d in diags if d.severity == "error"]
+
+
+def test_warns_for_conflicts_behind_if_conditions(domain):
+    d, where = _with(domain, "for coffee if available oat_milk: it has oat_milk", "for coffee: it has no plant_based",
+                     "for cereal if it has milk: it has whole_milk", "for cereal if it has no milk: it has no whole_milk",
+                     "for tea if it has milk: it has oat_milk", "for tea: it has no milk")
+    found = [(x.line, x.message) for x in lint(d, where) if x.code == "L005"]
+    assert len(found) == 1, found  # exclusive conditions, and a condition the other rule keeps false, are fine
+    line, msg = found[0]
+    assert line == 2 and "'for coffee if available oat_milk' hold(s)" in msg and "forbids plant_based" in msg
+    assert not [x for x in lint(d, where) if x.code == "L003"]  # the unconditional check stays as it was
+
+
+def test_warns_for_a_preference_against_a_completion_rule(domain):
+    """A fruit smoothie for a persona who wants no fruit: on a smoothie task it can never be satisfied."""
+    from dataclasses import replace
+
+    from adaptbench.compiler.model import Component, Task
+
+    smoothie = Component("smoothie", "a fruit smoothie", "beverage", (), parse_rule("it has fruit and it has milk"))
+    d = replace(domain, components=domain.components + (smoothie,),
+                tasks=domain.tasks + (Task("smoothie", "Make a fruit smoothie", ("smoothie",)),))
+    d, where = _with(d, "for all: meal has no fruit", "for parfait: it has no yoghurt",
+                     "for beverage: it has only (coffee | tea_bag | water)", "for all: meal has no avocado")
+    found = {x.line: x.message for x in lint(d, where) if x.code == "L004"}
+    assert set(found) == {1, 2, 3}, found
+    assert "on a task with smoothie" in found[1] and "needs fruit" in found[1]
+    assert "every parfait needs yoghurt" in found[2]
+    assert "allows only" in found[3] and "smoothie" in found[3]

@@ -15,7 +15,8 @@ from adaptbench.compiler.rules import parse_rule
 from adaptbench.runtime import actions, verify
 
 DOCS = Path(__file__).resolve().parents[2] / "docs" / "rules.md"
-_KINDS = {"subject": "subject", "cls": "class", "NAME": "name", "CMP": "cmp", "INT": "int"}
+_KINDS = {"subject": "subject", "cls": "class", "NAME": "name", "CMP": "cmp", "INT": "int", "expr": "expr"}
+_DECLARED = [*P.PREDICATES.values(), *P.QUANTIFIERS.values()]
 
 
 def _grammar_alternatives() -> dict:
@@ -32,7 +33,7 @@ def _grammar_alternatives() -> dict:
 
 
 def test_the_grammar_reads_exactly_the_declared_predicates():
-    declared = {alias: kinds for p in P.PREDICATES.values() for alias, kinds in p.syntax}
+    declared = {alias: kinds for p in _DECLARED for alias, kinds in p.syntax}
     assert _grammar_alternatives() == declared
 
 
@@ -64,7 +65,7 @@ def _documented() -> set:
 
 
 def test_docs_list_exactly_the_declared_forms():
-    declared = {form for p in P.PREDICATES.values() for form in p.docs}
+    declared = {form for p in _DECLARED for form in p.docs}
     assert _documented() == declared
 
 
@@ -76,6 +77,12 @@ _SAMPLES = {"has": "it has milk", "has_no": "it has no milk", "has_only": "it ha
             "served_before": "coffee served before food", "available": "available toaster", "uses": "uses toaster",
             "uses_in": "it uses toaster", "task_has": "task has toast", "made": "made toast",
             "contains": "y contains x", "on": "x on stove", "within": "x within stove", "holds": "x holds water"}
+
+
+def test_quantifiers_parse_to_their_node():
+    from adaptbench.compiler import ast as A
+
+    assert isinstance(parse_rule("for egg_dish: each sides with vegetable (it is hot)").expr, A.Each)
 
 
 @pytest.mark.parametrize("name", sorted(P.PREDICATES))

@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 
 from adaptbench.cli import main
-from adaptbench.harness.evaluate import UNSEEN, mean_se, table
+from adaptbench.harness.evaluate import mean_se, table
 from adaptbench.harness.record import EpisodeRecord
 from adaptbench.harness.rollout import Job, done_keys, parse_seeds, rollout
 
@@ -35,11 +35,11 @@ def test_rollout_appends_and_resumes(tmp_path, domain):
     assert rec["spec_hash"] == domain.spec_hash and rec["agent_config"]["agent"] == "never-ask"
 
 
-def test_table_seen_unseen_and_se():
+def test_table_seen_unseen_and_se(domain):
     recs = [EpisodeRecord.from_dict({"agent": "x", "persona": p, "task": "eggs", "seed": 0, "satisfaction_rate": r,
                                      "questions": q, "split": 1}) for p, r, q in (("juan", 1.0, 2), ("ron", 0.5, 4))]
-    row = table(recs)[0]
-    assert "juan" in UNSEEN[1]
+    row = table(recs, domain.unseen)[0]
+    assert "juan" in domain.unseen[1]
     assert row["rate_unseen"] == (1.0, 0.0) and row["rate_seen"] == (0.5, 0.0)
     assert mean_se([1.0, 0.0]) == (0.5, 0.5)
 

@@ -96,8 +96,20 @@ BEATEN_COOKED = _eggs("whisk items in pan_1 to get beaten", "Turn on stove_0", "
                       "Move eggs from pan_1 to plate_0")
 BEATEN_SCRAMBLED = _eggs("whisk items in pan_1 to get beaten", "Turn on stove_0",
                          "scramble items in pan_1 to get omelette", "Move omelette from pan_1 to plate_0")
-POACHED = _eggs("Pour water from sink_1 into pan_1", "Pour salt from salt_box_0 to pan_1", "Turn on stove_0",
-                "Cook items in pan_1 to get eggs", "Move eggs from pan_1 to plate_0")
+POACHED = _eggs("crack items in pan_1 to get cracked_eggs", "Pour water from sink_1 into pan_1",
+                "Pour salt from salt_box_0 to pan_1", "Turn on stove_0", "Cook items in pan_1 to get eggs",
+                "Move eggs from pan_1 to plate_0")
+# whole eggs in a pot of water on heat: boiled in the shell, whatever the agent calls the step
+SHELL_POACHED = _eggs("Pour water from sink_1 into pan_1", "Turn on stove_0", "poach items in pan_1 to get poached_eggs",
+                      "Move poached_eggs from pan_1 to plate_0")
+BOILED = FIND + ["Look for pot", "Move pot_0 to stove_0", "Pour water from sink_1 into pot_0", "Move egg_0 to pot_0",
+                 "Move egg_1 to pot_0", "Turn on stove_0", "Move egg_0 from pot_0 to plate_0",
+                 "Move egg_1 from pot_0 to plate_0", "Move plate_0 to table_1"]
+BOILED_PEELED = FIND + ["Look for pot", "Move pot_0 to stove_0", "Pour water from sink_1 into pot_0",
+                        "Move egg_0 to pot_0", "Turn on stove_0", "Move egg_0 from pot_0 to plate_0",
+                        "peel egg_0 to get peeled_egg", "Move plate_0 to table_1"]
+DRY_WHOLE = FIND + ["Look for pot", "Move pot_0 to stove_0", "Move egg_0 to pot_0", "Turn on stove_0",
+                    "Move egg_0 from pot_0 to plate_0", "Move plate_0 to table_1"]
 FLIPPED = _eggs("Turn on stove_0", "fry items in pan_1 to get eggs", "flip items in pan_1 to get eggs",
                 "Move eggs from pan_1 to plate_0")
 UNFLIPPED = _eggs("Turn on stove_0", "fry items in pan_1 to get over_easy_eggs",
@@ -105,6 +117,15 @@ UNFLIPPED = _eggs("Turn on stove_0", "fry items in pan_1 to get over_easy_eggs",
 HOT_COFFEE = FIND + ["Look for kettle", "Pour water from sink_1 into kettle_0", "Turn on kettle_0",
                      "Pour coffee_grounds from coffee_0 to mug_0", "Pour water from kettle_0 into mug_0"]
 CHILLED_COFFEE = HOT_COFFEE + ["chill items in mug_0 to get hot_coffee", "Move mug_0 to table_0"]
+FRIDGE_COFFEE = HOT_COFFEE + ["Open fridge_0", "Move mug_0 to fridge_0", "Move mug_0 to table_0"]
+COOLED_COFFEE = HOT_COFFEE + ["cool items in mug_0 to get coffee", "Move mug_0 to table_0"]
+ICE_COFFEE = HOT_COFFEE + ["Move ice_cube from ice_tray_0 to mug_0", "Move mug_0 to table_0"]
+REHEATED_COFFEE = HOT_COFFEE + ["Open fridge_0", "Move mug_0 to fridge_0", "Look for microwave",
+                                "Move mug_0 to microwave_0", "Turn on microwave_0", "Move mug_0 to table_0"]
+FRIDGE_POUR_COFFEE = FIND + ["Look for kettle", "Pour water from sink_1 into kettle_0", "Turn on kettle_0",
+                             "Pour coffee_grounds from coffee_0 to mug_0", "Open fridge_0", "Move mug_0 to fridge_0",
+                             "Pour water from kettle_0 into mug_0", "Move mug_0 to table_0"]
+COLD_MILK = FIND + ["Pour whole_milk from milk_0 to mug_0", "Move mug_0 to table_0"]
 
 STYLE_CASES = [
     ("fried eggs named poached are not poached", FRIED_NAMED_POACHED, "for egg_dish: it is poached", "violated"),
@@ -115,7 +136,17 @@ STYLE_CASES = [
     ("beaten then scrambled is scrambled, whatever its name", BEATEN_SCRAMBLED, "for egg_dish: it is scrambled",
      "satisfied"),
     ("beaten then scrambled is no omelette", BEATEN_SCRAMBLED, "for egg_dish: it is omelette", "violated"),
-    ("cooked in water is poached", POACHED, "for egg_dish: it is poached", "satisfied"),
+    ("cracked then cooked in water is poached", POACHED, "for egg_dish: it is poached", "satisfied"),
+    ("cracked then cooked in water is not boiled", POACHED, "for egg_dish: it is boiled", "violated"),
+    ("whole eggs in hot water are boiled, whatever the step is called", SHELL_POACHED, "for egg_dish: it is boiled",
+     "satisfied"),
+    ("whole eggs in hot water are not poached", SHELL_POACHED, "for egg_dish: it is poached", "violated"),
+    ("eggs boiled in the shell in a pot are boiled", BOILED, "for egg_dish: it is boiled", "satisfied"),
+    ("eggs boiled in the shell are neither poached nor fried", BOILED, "for egg_dish: it is poached | fried",
+     "violated"),
+    ("a boiled egg peeled afterwards is still boiled", BOILED_PEELED, "for egg_dish: it is boiled", "satisfied"),
+    ("the water a shell egg boiled in stays in the pot", BOILED, "for egg_dish: it has no water", "satisfied"),
+    ("whole eggs heated in a dry pot are not boiled", DRY_WHOLE, "for egg_dish: it is boiled", "violated"),
     ("poaching water is no ingredient", POACHED, "for egg_dish: it has only (egg | salt)", "satisfied"),
     ("poaching water is no ingredient (has no)", POACHED, "for egg_dish: it has no water", "satisfied"),
     ("fried and flipped is over easy", FLIPPED, "for egg_dish: it is over_easy", "satisfied"),
@@ -136,6 +167,29 @@ def test_styles_by_process(domain, name, actions, rule, expected):
                                               (CHILLED_COFFEE, "violated")])
 def test_hot_means_served_while_heated(domain, actions, expected):
     assert judge(domain, actions, "for coffee: it is hot", task="toast_coffee").verdict == expected
+
+
+TEMPERATURE_CASES = [
+    ("chilled in the fridge after brewing is not hot", FRIDGE_COFFEE, "hot", "violated"),
+    ("chilled in the fridge after brewing is iced", FRIDGE_COFFEE, "iced", "satisfied"),
+    ("a chilling verb makes it iced", CHILLED_COFFEE, "iced", "satisfied"),
+    ("cooled on the counter is not hot", COOLED_COFFEE, "hot", "violated"),
+    ("cooled on the counter is not iced either", COOLED_COFFEE, "iced", "violated"),
+    ("ice in a hot coffee: iced, not hot", ICE_COFFEE, "iced", "satisfied"),
+    ("ice in a hot coffee is not hot", ICE_COFFEE, "hot", "violated"),
+    ("hot from the kettle is not iced", HOT_COFFEE + ["Move mug_0 to table_0"], "iced", "violated"),
+    ("chilled, then reheated in the microwave, is hot again", REHEATED_COFFEE, "hot", "satisfied"),
+    ("hot water poured into a cup standing in the fridge goes into the fridge: not hot", FRIDGE_POUR_COFFEE, "hot",
+     "violated"),
+    ("cold milk from the fridge is neither hot", COLD_MILK, "hot", "violated"),
+    ("nor iced: it was never chilled here nor iced", COLD_MILK, "iced", "violated"),
+]
+
+
+@pytest.mark.parametrize("name,actions,style,expected", TEMPERATURE_CASES, ids=[c[0] for c in TEMPERATURE_CASES])
+def test_hot_and_iced_follow_the_kitchen(domain, name, actions, style, expected):
+    v = judge(domain, actions, f"for coffee: it is {style}", task="toast_coffee")
+    assert v.verdict == expected, f"{name}: {v.verdict} ({v.reason})"
 
 
 # ---- uses: took part
@@ -213,3 +267,41 @@ def test_tea_bag_under_the_hot_water_is_made_with(domain):
     honey = actions + ["Pour honey from honey_0 to cup_0"]
     assert judge(domain, honey, "for tea: it topped with honey", task="tea_eggs").verdict == "satisfied"
     assert judge(domain, honey, "for tea: it made with honey", task="tea_eggs").verdict == "violated"
+
+
+# ---- every object of the sentence is checked: `each S with X (...)` (issue 6, item 12)
+SEASONED_EGGS = FIND + ["Look for pepper"] + PAN + ["Move salt from salt_box_0 to pan_1",
+                                                    "Move pepper from pepper_0 to pan_1"] + SCRAMBLE
+TOMATO_SIDE = ["Move tomato_0 to plate_1", "Move plate_1 to table_1"]
+SALTED_TOMATO_SIDE = ["Move tomato_0 to plate_1", "Move salt from salt_box_0 to plate_1",
+                      "Move pepper from pepper_0 to plate_1", "Move plate_1 to table_1"]
+SALT_AND_PEPPER = "for egg_dish: it has salt and it has pepper and each sides with vegetable (it has salt and it has pepper)"
+EACH_CASES = [
+    ("eggs and vegetable side both seasoned", SEASONED_EGGS + ["Move plate_0 to table_1"] + SALTED_TOMATO_SIDE,
+     "satisfied"),
+    ("an unseasoned vegetable side breaks 'salt and pepper on eggs and vegetables'",
+     SEASONED_EGGS + ["Move plate_0 to table_1"] + TOMATO_SIDE, "violated"),
+    ("no vegetable served: only the eggs are checked", SEASONED_EGGS + ["Move plate_0 to table_1"], "satisfied"),
+    ("a tomato placed unseasoned on the seasoned eggs is an unseasoned vegetable",
+     SEASONED_EGGS + ["Move tomato_0 to plate_0", "Move plate_0 to table_1"], "violated"),
+    ("seasoned vegetables but plain eggs", FIND + ["Look for pepper"] + PAN + SCRAMBLE + ["Move plate_0 to table_1"]
+     + SALTED_TOMATO_SIDE, "violated"),
+]
+
+
+@pytest.mark.parametrize("name,actions,expected", EACH_CASES, ids=[c[0] for c in EACH_CASES])
+def test_each_object_of_the_sentence(domain, name, actions, expected):
+    v = judge(domain, actions, SALT_AND_PEPPER, task="eggs")
+    assert v.verdict == expected, f"{name}: {v.verdict} ({v.reason})"
+
+
+def test_each_parses_and_is_checked(domain):
+    from adaptbench.compiler import ast as A
+    from adaptbench.compiler.rules import parse_rule
+
+    rule = parse_rule("for egg_dish: each sides with (vegetable | meat) (count(it, spice) >= 2)")
+    each = rule.expr
+    assert isinstance(each, A.Each) and each.subject == "sides" and each.cls is not None
+    assert A.from_data(A.to_data(rule)) == rule
+    plain = parse_rule("for toast: each it (it has butter)").expr
+    assert isinstance(plain, A.Each) and plain.cls is None

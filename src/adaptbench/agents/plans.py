@@ -9,6 +9,7 @@ one is not in the house.
 from __future__ import annotations
 
 import re
+import sys
 from dataclasses import dataclass
 
 from ..compiler.model import CompiledDomain, Recipe, Task
@@ -46,6 +47,26 @@ def task_recipes(domain: CompiledDomain, task: Task, assignment: dict | None = N
     return _order(domain, recipes, (assignment or {}).get(f"{PLAN}.serve_order", "as_listed"))
 
 
+def missing_recipes(domain: CompiledDomain, task: Task) -> tuple:
+    """The task's components that no recipe makes (the compiler warns about them, D410)."""
+    made = {r.component for r in domain.recipes if r.component and not r.optional}
+    return tuple(c for c in task.components if c not in made)
+
+
+def notes(domain: CompiledDomain, task: Task) -> list:
+    """What a scripted agent cannot do on this task, in words (`no recipe for component X`)."""
+    return [f"no recipe for component {c}: the scripted agents skip it" for c in missing_recipes(domain, task)]
+
+
+def _say_missing(domain: CompiledDomain, task: Task) -> None:
+    """Print each `no recipe for component X` once per domain to stderr."""
+    said = domain.derived("plans.said_missing", lambda d: set())
+    for line in notes(domain, task):
+        if line not in said:
+            said.add(line)
+            print(f"adapt: warning: {line} (task {task.id})", file=sys.stderr)
+
+
 def all_recipes(domain: CompiledDomain, task: Task) -> list:
     """Every recipe a plan for this task might use (task components and all extras)."""
     extras = [c for c in domain.planning if c.id == "extras"]
@@ -54,12 +75,14 @@ def all_recipes(domain: CompiledDomain, task: Task) -> list:
 
 
 def _order(domain: CompiledDomain, recipes: list, order: str) -> list:
-    def kind(r: Recipe) -> str:
-        return domain.component[r.component].kind if r.component else "side"
+    drinks = domain.engine.drink_kinds
+
+    def drink(r: Recipe) -> bool:
+        return r.component is not None and domain.component[r.component].kind in drinks
     if order == "beverages_first":
-        return sorted(recipes, key=lambda r: kind(r) != "beverage")
+        return sorted(recipes, key=lambda r: not drink(r))
     if order == "food_first":
-        return sorted(recipes, key=lambda r: kind(r) == "beverage")
+        return sorted(recipes, key=drink)
     return recipes
 
 
@@ -85,6 +108,7 @@ class Executor:
 
     def steps(self):
         """Every recipe of the plan in order, each served as it is finished, then Declare Done."""
+        _say_missing(self.domain, self.task)
         for recipe in task_recipes(self.domain, self.task, self.assignment):
             yield from self.run_recipe(recipe)
         yield from self.act("Declare Done")

@@ -154,6 +154,8 @@ def rule_names(domain: CompiledDomain, persona: Persona, task: Task) -> set:
             out |= set(style.words) | set(style.verbs)
             if style.rule is not None:
                 out |= {n.name for n in A.walk(style.rule) if isinstance(n, A.ClsName)}
+            for alt in style.process:  # the classes a process is about (`food: ice` for iced)
+                out |= {v.strip() for k, val in alt if k in ("food", "with") for v in str(val).split("|")}
     return out
 
 
@@ -283,18 +285,17 @@ class Oracle:
                 yield cand
 
 
-_FAMILIES = ("breakfast_cereal", "creamer", "sweetener", "fruit", "nut", "seed", "spice", "herb", "cheese")
-
-
 def _category(domain: CompiledDomain, value: str) -> str:
-    """The family an option is swapped within: a broad tag (cereal, fruit, sweetener ...) or its category."""
+    """The family an option is swapped within: the first of the engine's `swap_families` (cereal, fruit,
+    sweetener ...) it has, or its category."""
     item = domain.substance.get(value) or domain.entity.get(value)
     if item is None:
         members = [e for e in domain.entities if e.category == value]
         item = members[0] if members else None
     if item is None:
         return value
-    return next((f for f in _FAMILIES if f in item.tags or f == item.category), item.category)
+    families = domain.engine.swap_families
+    return next((f for f in families if f in item.tags or f == item.category), item.category)
 
 
 def swaps(domain: CompiledDomain, choice: Choice, current: tuple, names: set):

@@ -15,11 +15,20 @@ _STOP = frozenset((
     "a an the of to in on for and or with do does did you your i me my would like prefer is are be it this "
     "that any what which how should want have has there some about breakfast please food dish make made "
     "use also get take").split())
-_LOCATION = re.compile(r"\bwhere (is|are|can i find|do you keep|would i find|should i look)\b|"
-                       r"\bwhich (cabinet|drawer|shelf|cupboard)\b|\b(located|locate)\b|\bfind the\b", re.I)
+_WHERE = r"\bwhere (is|are|can i find|do you keep|would i find|should i look)\b|\b(located|locate)\b|\bfind the\b"
 NO_PREFERENCE = "I don't have a particular preference about that; go with what you think is best."
 NO_LOCATION = ("I'm not sure where things are kept; please look around and search the kitchen. "
                "I can tell you how I like my breakfast, though.")
+
+
+def location_question(domain: CompiledDomain) -> re.Pattern:
+    """What makes a question one about where things are: `where is ...`, or `which <storage noun>` with the
+    engine's `location_words` (cabinet, drawer ...). Built once per domain."""
+    def build(d: CompiledDomain) -> re.Pattern:
+        nouns = "|".join(re.escape(w) for w in d.engine.location_words)
+        which = rf"|\bwhich ({nouns})\b" if nouns else ""
+        return re.compile(_WHERE + which, re.I)
+    return domain.derived("users.location_question", build)
 
 
 def words(text: str) -> set:
@@ -85,7 +94,7 @@ class OfflineUser:
         return self._memory[key]
 
     def _answer(self, question: str) -> str:
-        if _LOCATION.search(question):
+        if location_question(self.domain).search(question):
             return NO_LOCATION
         prefs = self.pick(question)
         if not prefs:

@@ -22,7 +22,7 @@ from .sanity import check_location_cycles, check_templates
 
 __all__ = ["CompiledDomain", "Diagnostic", "SpecError", "compile_spec", "load_domain", "spec_hash"]
 
-COMPILER_VERSION = "3"  # bump when the compiled form or its cache format changes
+COMPILER_VERSION = "4"  # bump when the compiled form or its cache format changes
 
 
 def _display(path: Path) -> str:
@@ -48,23 +48,9 @@ def compile_spec(spec_dirs) -> tuple[CompiledDomain | None, list[Diagnostic]]:
     """Compile spec directories; return the domain (None if any error) and all diagnostics."""
     dirs = [Path(d) for d in spec_dirs]
     draft = Draft()
-    for d in dirs:
-        if not d.is_dir():
-            draft.diags.append(Diagnostic(str(d), 1, 1, "S003", "spec directory not found"))
-        elif not spec_files([d]):
-            draft.diags.append(Diagnostic(str(d), 1, 1, "S004", "no spec files here (expected objects/, actions/, "
-                                          "tasks/ and personas/ holding *.yaml files)"))
-    for kind, path in spec_files(dirs):
-        doc, diags = load_file(path, _display(path))
-        draft.diags.extend(diags)
-        if doc is None:
-            continue
-        schema_diags = validate_schema(doc, kind)
-        draft.diags.extend(schema_diags)
-        if not schema_diags:
-            ADDERS[kind](draft, doc)
-    if not check_location_cycles(draft):  # later passes walk holder chains
-        return None, sorted(draft.diags)
+    _read_all(draft, _files(draft, dirs))
+    if not check_location_cycles(draft) or draft.engine is None:  # later passes walk holder chains and
+        return None, sorted(draft.diags)                             # name the engine's words
     check_all(draft)
     check_templates(draft)
     if any(d.severity == "error" for d in draft.diags):
@@ -74,6 +60,35 @@ def compile_spec(spec_dirs) -> tuple[CompiledDomain | None, list[Diagnostic]]:
     if any(d.severity == "error" for d in draft.diags):
         return None, sorted(draft.diags)
     return domain, sorted(draft.diags)
+
+
+def _files(draft: Draft, dirs: list) -> list:
+    """The spec files of the directories; S003/S004 for a missing or empty one, D501 with no engine.yaml."""
+    for d in dirs:
+        if not d.is_dir():
+            draft.diags.append(Diagnostic(str(d), 1, 1, "S003", "spec directory not found"))
+        elif not spec_files([d]):
+            draft.diags.append(Diagnostic(str(d), 1, 1, "S004", "no spec files here (expected objects/, actions/, "
+                                          "tasks/ and personas/ holding *.yaml files)"))
+    files = spec_files(dirs)
+    if files and not draft.diags and not any(kind == "engine" for kind, _ in files):
+        draft.diags.append(Diagnostic(_display(dirs[0] / "engine.yaml"), 1, 1, "D501",
+                                      "missing spec/engine.yaml: the engine vocabulary (dining places, component "
+                                      "kinds, states ...) must be declared (see docs/authoring.md)"))
+    return files
+
+
+def _read_all(draft: Draft, files: list) -> None:
+    """Load, schema-check and add every file to the draft."""
+    for kind, path in files:
+        doc, diags = load_file(path, _display(path))
+        draft.diags.extend(diags)
+        schema_diags = validate_schema(doc, kind) if doc is not None else []
+        draft.diags.extend(schema_diags)
+        if doc is not None and not schema_diags:
+            ADDERS[kind](draft, doc)
+        elif kind == "persona":  # a persona that did not load is still not "unknown" to the splits
+            draft.broken.add(path.stem)
 
 
 def _unique(items):
@@ -101,6 +116,8 @@ def _freeze(draft: Draft, digest: str) -> CompiledDomain:
         recipes=_unique(draft.recipes),
         planning=tuple(draft.planning),
         processes=tuple((g, tuple(vs)) for g, vs in draft.processes.items()),
+        engine=draft.engine,
+        splits=tuple(sorted(draft.splits, key=lambda s: s.id)),
     )
 
 

@@ -105,6 +105,16 @@ class Pred(Node):
 
 
 @dataclass(frozen=True)
+class Each(Node):
+    """`each S [with X] (expr)`: expr holds for every dish of subject S (that has an ingredient matching
+    X), with `it` bound to that dish alone; true when there is none."""
+
+    subject: str
+    cls: object | None
+    expr: object
+
+
+@dataclass(frozen=True)
 class Scope(Node):
     """`for targets [if cond]:` of a preference rule."""
 
@@ -123,7 +133,7 @@ class Rule(Node):
 
 
 _TYPES = {cls.__name__: cls for cls in (ClsName, ClsAny, ClsAll, ClsNeg, ClsMod, Const, AnyOf, AllOf,
-                                        Not, IfElse, Pred, Scope, Rule)}
+                                        Not, IfElse, Pred, Each, Scope, Rule)}
 
 
 def to_data(node):

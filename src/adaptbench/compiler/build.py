@@ -11,12 +11,14 @@ from .model import (
     Choice,
     Component,
     Effect,
+    Engine,
     EntitySpec,
     Option,
     Persona,
     Precondition,
     Preference,
     Recipe,
+    Split,
     Step,
     Style,
     Substance,
@@ -44,6 +46,9 @@ class Draft:
     personas: list = field(default_factory=list)
     recipes: list = field(default_factory=list)
     planning: list = field(default_factory=list)
+    engine: Engine | None = None
+    splits: list = field(default_factory=list)
+    broken: set = field(default_factory=set)  # ids of persona files that did not load (already reported)
     where: dict = field(default_factory=dict)  # (kind, id[, field]) -> Where
     diags: list = field(default_factory=list)
 
@@ -120,6 +125,17 @@ def _remember(draft: Draft, doc: LoadedDoc, kind: str, ident: str, path: tuple, 
                 draft.where[(kind, ident, f, j)] = draft.at(doc, path + (f, j))
 
 
+def _effects(draft: Draft, doc: LoadedDoc, path: tuple, a: dict) -> list:
+    effects = []
+    for j, e in enumerate(a["effects"]):
+        (prim, params), = e.items()
+        effects.append(Effect(prim, tuple((k, str(v)) for k, v in (params or {}).items())))
+        draft.where[("effect", a["id"], j)] = draft.at(doc, path + ("effects", j))
+        for k in params or {}:
+            draft.where[("effect", a["id"], j, k)] = draft.at(doc, path + ("effects", j, prim, k))
+    return effects
+
+
 def add_actions(draft: Draft, doc: LoadedDoc) -> None:
     """Read action templates and verb groups from one actions file."""
     for i, a in enumerate(doc.data.get("actions", [])):
@@ -129,11 +145,7 @@ def add_actions(draft: Draft, doc: LoadedDoc) -> None:
             rule = rule_at(draft, doc, path + ("preconditions", j, "check"), p["check"])
             if rule is not None:
                 pres.append(Precondition(rule, p["fail"]))
-        effects = []
-        for j, e in enumerate(a["effects"]):
-            (prim, params), = e.items()
-            effects.append(Effect(prim, tuple((k, str(v)) for k, v in (params or {}).items())))
-            draft.where[("effect", a["id"], j)] = draft.at(doc, path + ("effects", j))
+        effects = _effects(draft, doc, path, a)
         slots = tuple(a.get("slots", {}).items())
         draft.actions.append(ActionSpec(a["id"], a["summary"], a.get("example", ""), tuple(a["forms"]), slots,
                                         tuple(pres), tuple(effects), a["success"]))
@@ -207,6 +219,25 @@ def add_recipes(draft: Draft, doc: LoadedDoc) -> None:
         draft.claim("recipe", r["id"], draft.at(doc, ("recipes", i, "id")))
         for j, c in enumerate(r["choices"]):
             draft.where[("choice", r["id"], c["id"])] = draft.at(doc, ("recipes", i, "choices", j, "id"))
+            for k in range(len(c["options"])):
+                draft.where[("option", r["id"], c["id"], k)] = draft.at(doc, ("recipes", i, "choices", j, "options", k))
+        marks: list = []
+        _step_marks(doc, ("recipes", i, "steps"), r["steps"], marks)
+        draft.where[("steps", r["id"])] = marks
+
+
+def _step_marks(doc: LoadedDoc, path: tuple, steps: list, out: list) -> None:
+    """The position (file, line, col, scalar style) of every step, in the order `Step`s are walked: a
+    step, then the body of a `when`/`for` (the `when`/`for` key's position stands for the block)."""
+    for j, s in enumerate(steps):
+        if isinstance(s, str):
+            m = doc.pos.at(path + (j,))
+            out.append((doc.file, m.line, m.col, m.style))
+            continue
+        key = "for" if "for" in s else "when"
+        m = doc.pos.at(path + (j, key))
+        out.append((doc.file, m.line, m.col, m.style))
+        _step_marks(doc, path + (j, "do"), s["do"], out)
 
 
 def add_persona(draft: Draft, doc: LoadedDoc) -> None:
@@ -223,6 +254,37 @@ def add_persona(draft: Draft, doc: LoadedDoc) -> None:
                                   data.get("description", ""), tuple(prefs)))
     draft.claim("persona", data["id"], draft.at(doc, ("id",)))
     draft.where[("persona_file", data["id"])] = doc.file
+    if "number" in data:
+        draft.where[("persona", data["id"], "number")] = draft.at(doc, ("number",))
 
 
-ADDERS = {"objects": add_objects, "actions": add_actions, "tasks": add_tasks, "persona": add_persona}
+def add_engine(draft: Draft, doc: LoadedDoc) -> None:
+    """Read spec/engine.yaml: the words the engine relies on."""
+    d = doc.data
+    draft.claim("engine vocabulary", "engine", draft.at(doc, ()))
+    draft.engine = Engine(d["dining_place"], tuple(d["kinds"]["food"]), tuple(d["kinds"]["drink"]),
+                          tuple(tuple(p) for p in d["states"]), tuple(d["action_verbs"]),
+                          tuple(d["swap_families"]), tuple(d["location_words"]), tuple(d["result_tags"]),
+                          tuple(d["search_ignores"]))
+    for key in ("dining_place", "states", "action_verbs", "swap_families", "location_words", "result_tags",
+                "search_ignores"):
+        draft.where[("engine", key)] = draft.at(doc, (key,))
+        for j in range(len(d[key]) if isinstance(d[key], list) else 0):
+            draft.where[("engine", key, j)] = draft.at(doc, (key, j))
+    for group in ("food", "drink"):
+        for j in range(len(d["kinds"][group])):
+            draft.where[("engine", "kinds", group, j)] = draft.at(doc, ("kinds", group, j))
+
+
+def add_splits(draft: Draft, doc: LoadedDoc) -> None:
+    """Read spec/splits.yaml: the cross-validation splits."""
+    for i, sp in enumerate(doc.data["splits"]):
+        draft.splits.append(Split(int(sp["id"]), tuple(sp["unseen"])))
+        draft.claim("split", str(sp["id"]), draft.at(doc, ("splits", i, "id")))
+        for j in range(len(sp["unseen"])):
+            draft.where[("split", int(sp["id"]), j)] = draft.at(doc, ("splits", i, "unseen", j))
+    draft.where[("splits",)] = draft.at(doc, ("splits",), key=True)
+
+
+ADDERS = {"objects": add_objects, "actions": add_actions, "tasks": add_tasks, "persona": add_persona,
+          "engine": add_engine, "splits": add_splits}

@@ -11,8 +11,10 @@ from pathlib import Path
 from . import ast as A
 from .build import Draft
 from .diagnostics import did_you_mean
+from .engine import check_effect_values, check_engine, check_persona_numbers, check_splits
 from .model import Where
-from .predicates import ops_for
+from .predicates import QUANTIFIERS, ops_for
+from .recipes import check_recipe_steps
 
 SLOT_TYPES = ("entity", "content", "thing", "query", "question", "result", "verb")
 
@@ -45,7 +47,8 @@ class Names:
         self.classes = set(draft.categories) | set(draft.tags)
         self.classes |= {e.id for e in draft.entities} | {s.id for s in draft.substances}
         self.components = {c.id for c in draft.components}
-        self.groups = {"all", "food", "sweet", "savory", "beverage"} | {g for c in draft.components for g in c.groups}
+        kinds = set(draft.engine.kinds) if draft.engine else set()
+        self.groups = {"all", "food"} | kinds | {g for c in draft.components for g in c.groups}
         self.styles = {s.id for s in draft.styles}
         self.verb_groups = set(draft.verb_groups) | set(draft.processes)
 
@@ -59,6 +62,11 @@ def check_all(draft: Draft) -> None:
     check_tasks(draft, names)
     check_personas(draft, names)
     check_recipes(draft, names)
+    check_recipe_steps(draft)
+    check_engine(draft)
+    check_effect_values(draft)
+    check_splits(draft)
+    check_persona_numbers(draft)
 
 
 # ---------------------------------------------------------------- objects
@@ -152,8 +160,9 @@ def _check_effects(draft: Draft, a, slots: dict) -> None:
 
 
 def check_verbs(draft: Draft) -> None:
-    """A verb belongs to one group only; process groups name declared verbs (or the fixed mix/cook/chop)."""
-    declared = {v for vs in draft.verb_groups.values() for v in vs} | {"mix", "cook", "chop"}
+    """A verb belongs to one group only; process groups name declared verbs (or the engine's action verbs)."""
+    action_verbs = set(draft.engine.action_verbs) if draft.engine else set()
+    declared = {v for vs in draft.verb_groups.values() for v in vs} | action_verbs
     for group, verbs in draft.processes.items():
         for v in verbs:
             if v not in declared:
@@ -198,7 +207,7 @@ def _check_styles(draft: Draft, names: Names) -> None:
 
 def _check_process(draft: Draft, style: str, alt: dict, names: Names) -> None:
     pools = {"food": ("class", names.classes), "with": ("class", names.classes)}
-    for key in ("before_heat", "not_before_heat", "while_hot", "not_while_hot"):
+    for key in ("before_heat", "not_before_heat", "while_hot", "not_while_hot", "made_by"):
         pools[key] = ("verb group", names.verb_groups)
     for key, (what, known) in pools.items():
         for name in alt.get(key, "").split("|"):
@@ -231,8 +240,19 @@ def _check_rule(draft: Draft, rule: A.Rule, context: str, names: Names, slots: d
     for node in A.walk(rule):
         if isinstance(node, A.Pred):
             errors.extend(_check_pred(node, context, names, slots or {}, rule.scope is not None))
+        elif isinstance(node, A.Each):
+            errors.extend(_check_each(node, context, names, rule.scope is not None))
     for node, code, msg in errors:
         draft.error(Where(rule.file, node.line, node.col), code, msg)
+
+
+def _check_each(node: A.Each, context: str, names: Names, scoped: bool) -> list:
+    if context not in QUANTIFIERS["each"].contexts:
+        return [(node, "D108", f"'each' cannot be used in a {context} rule")]
+    out = list(_check_subject(node, node.subject, context, names, {}, scoped))
+    if node.cls is not None:
+        out += _check_cls(node.cls, ("name", names.classes))
+    return out
 
 
 def _check_pred(node: A.Pred, context: str, names: Names, slots: dict, scoped: bool) -> list:
@@ -301,7 +321,6 @@ def _op_word(op: str) -> str:
 
 
 # ---------------------------------------------------------------- recipes
-_TEMPLATE_RE = re.compile(r"\{(?:src:)?(\w+)\}")
 
 
 def check_recipes(draft: Draft, names: Names) -> None:
@@ -316,8 +335,6 @@ def check_recipes(draft: Draft, names: Names) -> None:
             draft.error(where, "D403", f"serve '{r.serve}' is not a choice of recipe '{r.id}'")
         for c in r.choices:
             _check_choice(draft, draft.where[("choice", r.id, c.id)], c, catalogue)
-        for msg in _step_problems(r.steps, choices, set()):
-            draft.error(where, "D404", f"recipe '{r.id}': {msg}")
 
 
 def _check_choice(draft: Draft, where: Where, c, catalogue: set) -> None:
@@ -328,22 +345,3 @@ def _check_choice(draft: Draft, where: Where, c, catalogue: set) -> None:
     for d in c.default:
         if d not in c.values:
             draft.error(where, "D402", f"default '{d}' of choice '{c.id}' is not one of its options")
-
-
-def _step_problems(steps, choices: dict, loop_vars: set) -> list:
-    out = []
-    for s in steps:
-        if s.kind == "do":
-            for name in _TEMPLATE_RE.findall(s.text):
-                if name not in choices and name not in loop_vars:
-                    out.append(f"step '{s.text}' uses unknown choice '{name}'{did_you_mean(name, choices)}")
-        elif s.kind == "for":
-            if s.over not in choices:
-                out.append(f"'for: {s.over}' is not a choice{did_you_mean(s.over, choices)}")
-            out += _step_problems(s.body, choices, loop_vars | {"item"})
-        else:
-            for name, _ in s.cond:
-                if name not in choices:
-                    out.append(f"'when: {name}' is not a choice{did_you_mean(name, choices)}")
-            out += _step_problems(s.body, choices, loop_vars)
-    return out

@@ -1,6 +1,7 @@
 """The persona linter (part of `adapt validate`): applicability matrix, preferences that apply to
-no task, class expressions that match nothing in the catalogue, and pairs of preferences of one
-persona that cannot both be satisfied."""
+no task, class expressions that match nothing in the catalogue, pairs of preferences of one persona
+that cannot both be satisfied (also when one or both hold only under an `if` condition), and
+preferences that contradict a component's completion rule (no fruit, on a fruit smoothie task)."""
 
 from __future__ import annotations
 
@@ -90,6 +91,8 @@ def lint(domain: CompiledDomain, where: dict) -> list:
                                       "warning"))
             out += _empty_classes(pref, items, rooms, w.file)
         out += _conflicts(domain, p, where, items, rooms)
+        out += _conditional_conflicts(domain, p, where, items, rooms)
+        out += _against_completion(domain, p, where, items, rooms)
     return out
 
 
@@ -131,7 +134,8 @@ def _conflicts(domain: CompiledDomain, persona: Persona, where: dict, items: lis
         for b in prefs[i + 1:]:
             if not _covers(domain, _scope(a), _scope(b)):
                 continue
-            why = _clash(a, b, items, rooms) or _clash(b, a, items, rooms)
+            memo = domain.derived("lint.class_items", lambda d: {})
+            why = _clash(a, b, items, rooms, memo) or _clash(b, a, items, rooms, memo)
             if why:
                 w = where[("rule", persona.id, b.id)]
                 out.append(Diagnostic(w.file, w.line, w.col, "L003",
@@ -139,7 +143,7 @@ def _conflicts(domain: CompiledDomain, persona: Persona, where: dict, items: lis
     return out
 
 
-def _clash(a: Preference, b: Preference, items: list, rooms: dict) -> str:
+def _clash(a: Preference, b: Preference, items: list, rooms: dict, memo: dict | None = None) -> str:
     for x in _atoms(a):
         for y in _atoms(b):
             if not (isinstance(x, A.Pred) and isinstance(y, A.Pred)):
@@ -150,8 +154,8 @@ def _clash(a: Preference, b: Preference, items: list, rooms: dict) -> str:
             if x.subject != y.subject:
                 continue
             if x.op == "has" and y.op == "has_no":
-                hit = [i.name for i in items if matches(x.args[0], i, rooms)]
-                if hit and all(matches(y.args[0], i, rooms) for i in items if matches(x.args[0], i, rooms)):
+                hit = _hits(x.args[0], items, rooms, memo)
+                if hit and all(matches(y.args[0], i, rooms) for i in hit):
                     return f"one needs {_text(x.args[0])}, the other forbids {_text(y.args[0])}"
             if x.op == "adds_before" and y.op == "adds_before" and _same(x.args, tuple(reversed(y.args))):
                 return "opposite orders"
@@ -160,3 +164,110 @@ def _clash(a: Preference, b: Preference, items: list, rooms: dict) -> str:
 
 def _same(a: tuple, b: tuple) -> bool:
     return [_text(c) for c in a] == [_text(c) for c in b]
+
+
+def _hits(cls, items: list, rooms: dict, memo: dict | None) -> list:
+    """The catalogue items a class expression matches (kept in `memo` by the expression's text)."""
+    key = _text(cls)
+    hit = memo.get(key) if memo is not None else None
+    if hit is None:
+        hit = [i for i in items if matches(cls, i, rooms)]
+        if memo is not None:
+            memo[key] = hit
+    return hit
+
+
+def _forbidden(x, y, items: list, rooms: dict, memo: dict | None = None) -> str:
+    """Why atom `x` (`S has X`) cannot hold together with atom `y` (`S has no Y` / `S has only Y`) on the
+    same dishes, or ''. `memo` keeps the items each class matches."""
+    if not (isinstance(x, A.Pred) and isinstance(y, A.Pred) and x.op == "has"):
+        return ""
+    hit = _hits(x.args[0], items, rooms, memo)
+    if not hit:
+        return ""
+    if y.op == "has_no" and all(matches(y.args[0], i, rooms) for i in hit):
+        return f"needs {_text(x.args[0])}, which the other forbids ({_text(y.args[0])})"
+    if y.op == "has_only" and not any(matches(y.args[0], i, rooms) for i in hit):
+        return f"needs {_text(x.args[0])}, but the other allows only {_text(y.args[0])}"
+    return ""
+
+
+def _cond_atoms(pref: Preference) -> list:
+    cond = pref.rule.scope.cond if pref.rule.scope else None
+    if cond is None:
+        return []
+    return list(cond.items) if isinstance(cond, A.AllOf) else [cond]
+
+
+def _exclusive(a: Preference, b: Preference, items: list, rooms: dict, memo: dict) -> bool:
+    """Whether the `if` conditions of a and b cannot hold together (`if it has milk` / `if it has no milk`),
+    or one's condition already breaks the other (then keeping it false satisfies both)."""
+    ca, cb = _cond_atoms(a), _cond_atoms(b)
+    for x in ca:
+        for y in cb:
+            if isinstance(y, A.Not) and y.item == x or isinstance(x, A.Not) and x.item == y:
+                return True
+            if isinstance(x, A.Pred) and isinstance(y, A.Pred) and x.subject == y.subject and \
+                    (_forbidden(x, y, items, rooms, memo) or _forbidden(y, x, items, rooms, memo)):
+                return True
+    for cond, other in ((ca, b), (cb, a)):
+        if any(_forbidden(x, y, items, rooms, memo) or _forbidden(y, x, items, rooms, memo)
+               for x in cond for y in _atoms(other) if isinstance(x, A.Pred) and isinstance(y, A.Pred)
+               and x.subject == y.subject):
+            return True
+    return False
+
+
+def _conditional_conflicts(domain: CompiledDomain, persona: Persona, where: dict, items: list, rooms: dict) -> list:
+    """L005: pairs that clash whenever their `if` conditions hold (the plain pairs are L003)."""
+    out = []
+    prefs = list(persona.preferences)
+    for i, a in enumerate(prefs):
+        for b in prefs[i + 1:]:
+            if not (_cond_atoms(a) or _cond_atoms(b)) or not _covers(domain, _scope(a), _scope(b)):
+                continue
+            memo = domain.derived("lint.class_items", lambda d: {})
+            why = _clash(a, b, items, rooms, memo) or _clash(b, a, items, rooms, memo)
+            if why and not _exclusive(a, b, items, rooms, domain.derived("lint.class_items", lambda d: {})):
+                conds = " and ".join(f"'{p.rule.source.split(':', 1)[0].strip()}'" for p in (a, b) if _cond_atoms(p))
+                w = where[("rule", persona.id, b.id)]
+                out.append(Diagnostic(w.file, w.line, w.col, "L005",
+                                      f"'{b.id}' and '{a.id}' cannot both be satisfied when {conds} hold(s): {why}",
+                                      "warning"))
+    return out
+
+
+def _against_completion(domain: CompiledDomain, persona: Persona, where: dict, items: list, rooms: dict) -> list:
+    """L004: a preference that no dish completing some component can satisfy (it forbids what the
+    component's completion rule requires: no fruit, on a task with a fruit smoothie)."""
+    out, memo = [], domain.derived("lint.class_items", lambda d: {})
+    for pref in persona.preferences:
+        w = where.get(("rule", persona.id, pref.id))
+        limits = [y for y in _atoms(pref) if isinstance(y, A.Pred) and y.op in ("has_no", "has_only")]
+        if not limits or w is None:
+            continue
+        for y in limits:
+            for c in _subject_components(domain, pref, y.subject):
+                why = next((r for x in _atoms_of(domain.component[c].completion) if isinstance(x, A.Pred)
+                            and x.subject == "it" for r in [_forbidden(x, y, items, rooms, memo)] if r), "")
+                if why:
+                    when = " when its condition holds" if _cond_atoms(pref) else ""
+                    out.append(Diagnostic(w.file, w.line, w.col, "L004",
+                                          f"'{pref.id}' can never be satisfied on a task with {c}{when}: every {c} "
+                                          f"{why.replace('the other', 'this preference')} (completion rule of {c})",
+                                          "warning"))
+    return out
+
+
+def _atoms_of(rule: A.Rule) -> list:
+    e = rule.expr
+    return list(e.items) if isinstance(e, A.AllOf) else [e]
+
+
+def _subject_components(domain: CompiledDomain, pref: Preference, subject: str) -> list:
+    """The components whose dishes a subject word means, on the tasks the preference applies to."""
+    in_tasks = {c for t in domain.tasks if applies_to(domain, pref, t) for c in t.components}
+    if subject == "meal":
+        return sorted(in_tasks)
+    names = _scope(pref) if subject == "it" else (subject,)
+    return sorted({c for n in names for c in domain.groups.get(n, (n,))} & in_tasks)

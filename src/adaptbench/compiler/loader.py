@@ -11,12 +11,17 @@ from .diagnostics import Diagnostic, did_you_mean
 from .yamlpos import LoadedDoc, load_yaml
 
 KINDS = {"objects": "objects", "actions": "actions", "tasks": "tasks", "personas": "persona"}
+ROOT_FILES = {"engine.yaml": "engine", "splits.yaml": "splits"}  # single files at the top of a spec dir
+SCHEMA_KINDS = tuple(sorted(set(KINDS.values()) | set(ROOT_FILES.values())))
 
 
 def spec_files(spec_dirs: list[Path]) -> list[tuple[str, Path]]:
-    """(kind, path) for every YAML file under each spec dir's kind folders, sorted."""
+    """(kind, path) for every YAML file of each spec dir (its top-level files, then its kind folders, sorted)."""
     out = []
     for root in spec_dirs:
+        for name, kind in ROOT_FILES.items():
+            if (Path(root) / name).is_file():
+                out.append((kind, Path(root) / name))
         for folder, kind in KINDS.items():
             for path in sorted((Path(root) / folder).glob("*.y*ml")):
                 out.append((kind, path))

@@ -192,6 +192,46 @@ class Persona:
     preferences: tuple
 
 
+@dataclass(frozen=True)
+class Engine:
+    """What the simulator, verifiers, scripted agents and offline user rely on (spec/engine.yaml)."""
+
+    dining_place: str  # the tag of the places dishes are served at
+    food_kinds: tuple  # component kinds of solid food (the rule group `food`)
+    drink_kinds: tuple  # component kinds of drinks (served first under `beverages_first`)
+    states: tuple  # ((state, its opposite), ...) that `set_state` may set
+    action_verbs: tuple  # verbs the dedicated actions record (mix, cook, chop)
+    swap_families: tuple  # tags or categories the oracle swaps multi-choice items within
+    location_words: tuple  # storage nouns that make a question one about where things are
+    result_tags: tuple  # the tags of what a `to get` step makes (edible, food)
+    search_ignores: tuple  # tags too general to find things by with `Look for` (container, edible ...)
+
+    @property
+    def kinds(self) -> tuple:
+        """Every component kind."""
+        return self.food_kinds + self.drink_kinds
+
+    @property
+    def state_names(self) -> tuple:
+        """Every state, both sides of each pair."""
+        return tuple(s for pair in self.states for s in pair)
+
+    def opposite(self, state: str) -> str | None:
+        """The opposite of a state, or None."""
+        for a, b in self.states:
+            if state in (a, b):
+                return b if state == a else a
+        return None
+
+
+@dataclass(frozen=True)
+class Split:
+    """A cross-validation split: the personas it holds out (unseen); every other persona is seen."""
+
+    id: int
+    unseen: tuple
+
+
 @dataclass(frozen=True, eq=False)
 class CompiledDomain:
     """Everything the runtime, verifiers, grammars and prompts need, frozen."""
@@ -210,6 +250,13 @@ class CompiledDomain:
     recipes: tuple = ()
     planning: tuple = ()
     processes: tuple = ()  # ((group, (verbs...)), ...): overlapping verb groups the styles test
+    engine: Engine | None = None  # spec/engine.yaml (always set by the compiler)
+    splits: tuple = ()  # Split, spec/splits.yaml
+
+    @cached_property
+    def unseen(self) -> dict:
+        """Split id -> the persona ids it holds out."""
+        return {s.id: s.unseen for s in self.splits}
 
     @cached_property
     def process(self) -> dict:
@@ -268,12 +315,13 @@ class CompiledDomain:
     def groups(self) -> dict:
         """Group name -> component ids (kinds, declared groups, `food`, `all`)."""
         out: dict[str, list] = {"all": [], "food": []}
+        food = self.engine.food_kinds if self.engine else ()
         for c in self.components:
             out["all"].append(c.id)
             out.setdefault(c.kind, []).append(c.id)
             if c.alt_kind:
                 out.setdefault(c.alt_kind, []).append(c.id)
-            if c.kind != "beverage":
+            if c.kind in food:
                 out["food"].append(c.id)
             for g in c.groups:
                 out.setdefault(g, []).append(c.id)
@@ -313,7 +361,7 @@ class CompiledDomain:
 
 _MODEL_TYPES = {c.__name__: c for c in (EntitySpec, Substance, Precondition, Effect, ActionSpec, Component,
                                         Style, Task, Preference, Persona, CompiledDomain, Option, Choice, Step,
-                                        Recipe)}
+                                        Recipe, Engine, Split)}
 
 
 def _to_data(obj):

@@ -9,8 +9,9 @@ grammar, the checks, the evaluators and the docs agree with these declarations.
 
 Contexts: `precondition` (action `check:` rules; subjects are slots), `dish` (component completion
 and style rules; the subject is `it`), `preference` (persona rules). Argument kinds: `subject` (a
-subject name), `class` (a class expression), `name` (a bare name: a verb group or a component),
-`cmp` (a comparison), `int`.
+subject name), `class` (a class expression), `name` (a bare name: a verb group, a component or a
+subject), `cmp` (a comparison), `int`, `expr` (a nested rule expression). `QUANTIFIERS` declares the
+constructs that read like predicates but quantify over dishes (`each`).
 """
 
 from __future__ import annotations
@@ -59,6 +60,12 @@ PREDICATES = {p.name: p for p in (
     Predicate("on", ("precondition",), (("on", _SC),), ("x on X",)),
     Predicate("within", ("precondition",), (("within", _SC),), ("x within X",)),
     Predicate("holds", ("precondition",), (("holds", _SC),), ("x holds X",)),
+)}
+
+
+# Constructs that are not predicates of one subject but read like them (their own AST node and evaluator).
+QUANTIFIERS = {q.name: q for q in (
+    Predicate("each", _P, (("each", ("name", "class", "expr")),), ("each S [with X] (E)",)),
 )}
 
 

@@ -78,6 +78,10 @@ class _ToAst(Transformer):
     def made(self, meta, c):
         return A.Pred(*_pos(meta), "made", None, (_name(c[0]),))
 
+    def each(self, meta, c):
+        cls = c[1] if len(c) == 3 else None
+        return A.Each(*_pos(meta), str(c[0]), cls, c[-1])
+
     def cls_any(self, meta, c):
         return c[0] if len(c) == 1 else A.ClsAny(*_pos(meta), tuple(c))
 

@@ -19,7 +19,6 @@ from dataclasses import dataclass
 
 from ..compiler.model import CompiledDomain
 
-_GENERIC = {"movable", "container", "source", "edible", "food"}
 _STOP = {"a", "an", "the", "some", "of", "and", "or", "with", "for", "in", "on", "to"}
 
 
@@ -103,8 +102,15 @@ def _collisions(raw: list, verbs: set) -> list:
 
 
 def _actions(domain: CompiledDomain) -> tuple[tuple, tuple]:
-    raw = [(a.id, [_pieces(f, dict(a.slots)) for f in a.forms]) for a in domain.actions]
-    hits = _collisions(raw, set(domain.verbs))
+    return action_forms(domain.actions, domain.verbs)
+
+
+def action_forms(actions, verbs) -> tuple[tuple, tuple]:
+    """(ActionForms per action, collisions) from action specs and the declared verbs: what `build_index`
+    derives from a domain, also usable by the compiler before the domain exists. ValueError when an
+    action's forms name their slots in different orders."""
+    raw = [(a.id, [_pieces(f, dict(a.slots)) for f in a.forms]) for a in actions]
+    hits = _collisions(raw, set(verbs))
     keyword_alts = {(aid, i): v for aid, i, _, _, v in hits}
     excluded: dict = {}
     for _, _, bid, j, v in hits:
@@ -134,14 +140,15 @@ def plural(word: str) -> str:
 
 
 def _phrases_of(spec, domain) -> set:
-    keys = {spec.category} | (set(spec.tags) - _GENERIC)
+    generic = set(domain.engine.search_ignores)
+    keys = {spec.category} | (set(spec.tags) - generic)
     keys |= {t.rsplit("_", 1)[1] for t in spec.tags if "_" in t}
     keys.add(spec.id.rsplit("_", 1)[0] if re.search(r"_\d+$", spec.id) else spec.id)
     for name in getattr(spec, "contents", ()):
         keys.add(name)
         sub = domain.substance.get(name)
         if sub:
-            keys |= {sub.category} | (set(sub.tags) - _GENERIC)
+            keys |= {sub.category} | (set(sub.tags) - generic)
     return keys
 
 

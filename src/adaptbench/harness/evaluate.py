@@ -1,5 +1,6 @@
 """Evaluation tables in the paper's Table 1 layout: preference satisfaction rate and questions asked,
-mean ± standard error, for seen and unseen personas under the release's cross-validation splits."""
+mean ± standard error, for seen and unseen personas under the cross-validation splits of the spec
+(`spec/splits.yaml`: the release's four 12/4 splits; `CompiledDomain.unseen`)."""
 
 from __future__ import annotations
 
@@ -7,16 +8,12 @@ import csv
 import io
 import math
 
-# The release's 4 cross-validation splits: the unseen personas of each (the others are seen).
-UNSEEN = {0: ("leila", "lisa", "mark", "samantha"), 1: ("carlos", "jamal", "juan", "maria"),
-          2: ("ethan", "maya", "nalini", "ramesh"), 3: ("miranda", "rachel", "ron", "sarah")}
 
-
-def load_records(paths) -> list:
+def load_records(paths, splits=None) -> list:
     """All usable episode records from JSONL files (see `records.load_runs` for what is skipped)."""
     from .records import load_runs
 
-    return load_runs(paths).records
+    return load_runs(paths, splits).records
 
 
 def mean_se(values: list) -> tuple:
@@ -31,17 +28,19 @@ def mean_se(values: list) -> tuple:
     return m, math.sqrt(var / n)
 
 
-def split_of(record) -> list:
-    """The columns an `EpisodeRecord` counts in: a record with a `split` is seen or unseen in that split;
-    an untrained agent's record counts in both (every persona is seen in three splits and unseen in one)."""
+def split_of(record, unseen: dict) -> list:
+    """The columns an `EpisodeRecord` counts in: a record with a `split` is seen or unseen in that split
+    (`unseen`: split id -> held-out persona ids, the domain's `unseen`); an untrained agent's record
+    counts in both columns (every persona is seen in some splits and unseen in one)."""
     if record.split is not None:
-        unseen = record.persona in UNSEEN[record.split]
-        return ["unseen" if unseen else "seen"]
+        held_out = record.persona in unseen[record.split]
+        return ["unseen" if held_out else "seen"]
     return ["seen", "unseen"]
 
 
-def table(records: list) -> list:
-    """Rows of `EpisodeRecord`s: agent, n, rate seen/unseen (mean, se), questions seen/unseen (mean, se)."""
+def table(records: list, unseen: dict | None = None) -> list:
+    """Rows of `EpisodeRecord`s: agent, n, rate seen/unseen (mean, se), questions seen/unseen (mean, se).
+    `unseen` (the domain's splits) is needed only when some record has a `split`."""
     agents = sorted({r.agent for r in records}, key=lambda a: _order(a))
     rows = []
     for a in agents:
@@ -49,7 +48,7 @@ def table(records: list) -> list:
         for r in records:
             if r.agent != a:
                 continue
-            for col in split_of(r):
+            for col in split_of(r, unseen or {}):
                 if r.satisfaction_rate is not None:
                     cols[col][0].append(r.satisfaction_rate)
                 cols[col][1].append(r.questions)

@@ -8,8 +8,9 @@ Version history (`version` field):
   agent configuration defaults to the scripted agent with the offline user.
 - 1: `version`, the header (agent, agent configuration, persona, task, seed, spec hash, scene), the
   steps (action, ok, observation, reply; a model policy's prompt, completion and token statistics),
-  the verdicts (preferences, satisfied, violated, satisfaction rate, questions, completed components)
-  or, for an episode that ended in an exception, `error` and `traceback`.
+  the verdicts (preferences, satisfied, violated, satisfaction rate, questions, completed components),
+  `notes` when a scripted agent could not do part of the task, or, for an episode that ended in an
+  exception, `error` and `traceback`; `split` for a trained agent's evaluation.
 
 A record of a newer version than this code knows is refused (`RecordError`), never half-read.
 """
@@ -83,6 +84,7 @@ class EpisodeRecord:
     questions: int | None = None
     completed: tuple = ()
     split: int | None = None  # the cross-validation split a trained agent was evaluated on
+    notes: tuple = ()  # what a scripted agent could not do on the task ("no recipe for component X")
     error: str | None = None
     traceback: str | None = None
     version: int = RECORD_VERSION
@@ -108,7 +110,7 @@ class EpisodeRecord:
         return {**out, "scene": self.scene, "steps": [s.to_dict() for s in self.steps], "n_steps": self.n_steps,
                 "satisfied": self.satisfied, "violated": self.violated, "preferences": list(self.preferences),
                 "satisfaction_rate": self.satisfaction_rate, "questions": self.questions,
-                "completed": list(self.completed)}
+                "completed": list(self.completed), **({"notes": list(self.notes)} if self.notes else {})}
 
     def to_json(self) -> str:
         """One line of a results file (without the newline)."""
@@ -144,17 +146,16 @@ class EpisodeRecord:
 
 
 def _split(data: dict):
+    """The split id as a number (whether the domain has it is checked by `records.load_runs`)."""
     if "split" not in data:
         return None
-    from .evaluate import UNSEEN
-
-    try:
-        split = int(data["split"])
-    except (TypeError, ValueError):
-        raise RecordError("unknown split") from None
-    if split not in UNSEEN:
+    split = data["split"]
+    if isinstance(split, bool) or not isinstance(split, int | str):
         raise RecordError("unknown split")
-    return split
+    try:
+        return int(split)
+    except ValueError:
+        raise RecordError("unknown split") from None
 
 
 def _outcome(data: dict) -> dict:
@@ -172,4 +173,5 @@ def _outcome(data: dict) -> dict:
     return {"scene": data.get("scene"), "steps": tuple(StepRecord.from_dict(s) for s in steps),
             "satisfied": data.get("satisfied"), "violated": data.get("violated"),
             "preferences": tuple(p for p in prefs if isinstance(p, dict) and p.get("verdict") in VERDICTS),
-            "satisfaction_rate": rate, "questions": q, "completed": tuple(data.get("completed") or ())}
+            "satisfaction_rate": rate, "questions": q, "completed": tuple(data.get("completed") or ()),
+            "notes": tuple(data.get("notes") or ())}

@@ -42,7 +42,7 @@ class Runs:
         return f"skipped {sum(self.skipped.values())} line(s): {parts}"
 
 
-def _classify(rec, why, seen: set):
+def _classify(rec, why, seen: set, splits):
     """(record, None) for a usable episode, else (None, the reason it is skipped)."""
     if rec is None:
         return None, {"not JSON": "not JSON (torn line)"}.get(why, why)
@@ -52,11 +52,18 @@ def _classify(rec, why, seen: set):
         return None, str(exc)
     if record.error is not None:
         return None, "episode ended in an error"
+    if record.split is not None and not _known_split(record.split, splits):
+        return None, "unknown split"
     key = episode_key(rec)
     if key in seen:
         return None, "duplicate episode"
     seen.add(key)
     return record, None
+
+
+def _known_split(split: int, splits) -> bool:
+    """Whether a split id is one of the domain's (`splits`: a mapping, or a callable returning one)."""
+    return split in (splits() if callable(splits) else splits or {})
 
 
 def _check_file(path: Path) -> None:
@@ -66,15 +73,17 @@ def _check_file(path: Path) -> None:
         raise RunsError(f"{path} is a directory; give the JSONL files written by adapt rollout", 2)
 
 
-def load_runs(paths) -> Runs:
-    """Read every file; RunsError for a missing or unreadable one."""
+def load_runs(paths, splits=None) -> Runs:
+    """Read every file; RunsError for a missing or unreadable one. `splits`: the domain's split ids (a
+    mapping, or a callable returning one, called only if some record has a `split`); a record whose
+    split is not among them is skipped."""
     runs, seen = Runs(), set()
     for p in map(Path, paths):
         _check_file(p)
         hashes = runs.hashes.setdefault(str(p), Counter())
         try:
             for _, line in iter_lines(p):
-                record, reason = _classify(*parse_line(line), seen)
+                record, reason = _classify(*parse_line(line), seen, splits)
                 if reason:
                     runs.skipped[reason] += 1
                     continue

@@ -137,8 +137,15 @@ def run_episode(job: Job, spec: str = "spec") -> dict:
                            satisfied=ev.satisfied, violated=ev.violated,
                            preferences=tuple(ev.as_dict()["preferences"]),
                            satisfaction_rate=ev.satisfaction_rate, questions=ev.questions,
-                           completed=tuple(ev.completed))
+                           completed=tuple(ev.completed), notes=tuple(_notes(d, env.task)))
     return record.to_dict()
+
+
+def _notes(domain, task) -> list:
+    """What the scripted agents could not do on this task (`no recipe for component X`)."""
+    from ..agents.plans import notes
+
+    return notes(domain, task)
 
 
 def safe_episode(job: Job, spec: str = "spec") -> dict:

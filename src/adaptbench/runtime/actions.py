@@ -197,7 +197,7 @@ def content_node(world: World, ref: Ref) -> Node:
             return n
     s = world.domain.substance.get(ref.value)
     if s is None:
-        return Node(0, ref.value, None, frozenset(("edible", "food")))
+        return Node(0, ref.value, None, frozenset(world.domain.engine.result_tags))
     return Node(0, s.id, s.category, frozenset(s.tags))
 
 

@@ -44,8 +44,9 @@ class Dish:
 
 def dining_place(world: World, eid: str) -> str | None:
     """The dining place `eid` stands on (at any depth), or None."""
+    tag = world.domain.engine.dining_place
     for a in world.ancestors(eid):
-        if "dining_place" in world.specs[a].tags:
+        if tag in world.specs[a].tags:
             return a
     return None
 
@@ -68,7 +69,8 @@ def served_dishes(world: World) -> list:
 def table(world: World) -> list:
     """Every dish and every as-is container (ketchup bottle, milk jug) standing on a dining place."""
     dishes = []
-    places = [e for e, s in world.specs.items() if "dining_place" in s.tags]
+    tag = world.domain.engine.dining_place
+    places = [e for e, s in world.specs.items() if tag in s.tags]
     on_places = sorted(d for p in places for d in world.descendants(p))
     for eid in on_places:
         if world.specs[eid].kind != "movable":

@@ -62,11 +62,11 @@ def _query_words(query: str) -> frozenset:
     return _stems(key) | (frozenset(s for w in words for s in _stems(w)) if len(words) == 1 else frozenset())
 
 
-_GENERIC = {"movable", "container", "source", "edible", "food"}
 
 
 def _static_keys(spec, domain) -> frozenset:
-    keys = {spec.category} | (set(spec.tags) - _GENERIC)
+    generic = set(domain.engine.search_ignores)
+    keys = {spec.category} | (set(spec.tags) - generic)
     keys |= {t.rsplit("_", 1)[1] for t in spec.tags if "_" in t}  # breakfast_cereal -> cereal
     keys |= {s for w in re.findall(r"[a-z]+", spec.description.lower()) for s in _stems(w)}
     keys.add(spec.id.rsplit("_", 1)[0])
@@ -74,7 +74,7 @@ def _static_keys(spec, domain) -> frozenset:
         sub = domain.substance.get(name)
         keys.add(name)
         if sub:
-            keys |= {sub.category} | (set(sub.tags) - _GENERIC)
+            keys |= {sub.category} | (set(sub.tags) - generic)
             keys |= {t.rsplit("_", 1)[1] for t in sub.tags if "_" in t}
     return frozenset(keys)
 
@@ -164,14 +164,11 @@ def _natural(eid: str):
 
 
 def set_state(world: World, params: dict, b: dict, ctx) -> None:
-    """Open/close or switch an entity on/off."""
+    """Set a state of an entity (open, on ...), clearing its opposite (spec/engine.yaml `states`)."""
     eid, state = _ent(params, b, "target"), params["state"]
     states = world.state.setdefault(eid, set())
-    flip = {"open": "closed", "closed": "open", "on": "off", "off": "on"}
-    states.discard(flip[state])
+    states.discard(world.domain.engine.opposite(state))
     states.add(state)
-    if state == "off":
-        states.discard("on")
 
 
 def took_part(world: World, node, vessels) -> None:
@@ -193,9 +190,41 @@ def _heat_node(world: World, node, vessels) -> None:
 def _heat_entity(world: World, eid: str) -> None:
     vessels = [eid, *world.ancestors(eid)]
     if eid in world.nodes:
-        _heat_node(world, world.nodes[eid], vessels)
+        node = world.nodes[eid]
+        _heat_node(world, node, vessels)
+        if _in_water(world, world.parent.get(eid)):
+            node.wet += (world.step,)  # a whole egg in a pot of water: boiled in its shell
     for n in world.contents.get(eid, ()):
         _heat_node(world, n, vessels)
+
+
+def _in_water(world: World, holder: str | None) -> bool:
+    """Whether `holder` holds water (an object in it sits in water)."""
+    return holder is not None and any(n.category == "water" for n in world.contents.get(holder, ()))
+
+
+# Where a thing put in is chilled (issue 6, item 5: a drink cooled in the fridge is not hot). The
+# furniture categories are engine vocabulary until spec/ can name them.
+_COLD = frozenset(("fridge", "freezer"))
+
+
+def _cold_ids(domain) -> frozenset:
+    """The catalogue ids of cold furniture (kept with the domain)."""
+    return frozenset(e.id for e in domain.entities if e.category in _COLD)
+
+
+def _is_cold(world: World, target: str) -> bool:
+    cold = world.domain.derived("effects.cold_ids", _cold_ids)
+    return bool(cold) and (target in cold or any(a in cold for a in world.ancestors(target)))
+
+
+def _chill_entity(world: World, eid: str) -> None:
+    """Everything edible in or on `eid` (and `eid` itself) was chilled now."""
+    for e in (eid, *world.descendants(eid)):
+        if e in world.nodes:
+            world.nodes[e].chilled += (world.step,)
+        for n in world.contents.get(e, ()):
+            n.chilled += (world.step,)
 
 
 def heat(world: World, params: dict, b: dict, ctx) -> None:
@@ -233,16 +262,21 @@ def move(world: World, params: dict, b: dict, ctx) -> None:
     ref, target = _arg(params, b, "item"), _ent(params, b, "target")
     if ref.kind == "entity":
         world.relocate(ref.value, target)
+        if _is_cold(world, target):
+            _chill_entity(world, ref.value)
         return
-    _into(world, target, ref.value)
-    world.put_contents(target, world.take_contents(ref.holder, ref.value))
+    pour(world, params, b, ctx)
 
 
 def pour(world: World, params: dict, b: dict, ctx) -> None:
     """Pour a content from one container into another."""
     ref, target = _arg(params, b, "item"), _ent(params, b, "target")
     _into(world, target, ref.value)
-    world.put_contents(target, world.take_contents(ref.holder, ref.value))
+    nodes = world.take_contents(ref.holder, ref.value)
+    world.put_contents(target, nodes)
+    if _is_cold(world, target):
+        for n in nodes:
+            n.chilled += (world.step,)
 
 
 def _applies(world: World, flag: str | None, verb: str) -> bool:
@@ -261,7 +295,7 @@ def combine(world: World, params: dict, b: dict, ctx) -> None:
             world.remove(child)
     if not inputs:
         raise ActionFailed(f"{container} holds nothing to {verb} (endless supplies must be poured out first)")
-    node = world.new_node(result, None, frozenset(("edible", "food")), tuple(inputs), verb)
+    node = world.new_node(result, None, frozenset(world.domain.engine.result_tags), tuple(inputs), verb)
     took_part(world, node, [container, *world.ancestors(container)])
     node.arrived = min(n.arrived for n in inputs)
     world.contents[container] = [node]
@@ -277,7 +311,7 @@ def transform(world: World, params: dict, b: dict, ctx) -> None:
         _transform_object(world, ref.value, result, verb, params)
         return
     old = world.take_contents(ref.holder, ref.value)
-    node = world.new_node(result, None, frozenset(("edible", "food")), tuple(old), verb)
+    node = world.new_node(result, None, frozenset(world.domain.engine.result_tags), tuple(old), verb)
     _mark(world, node, params, verb, ref.holder)
     node.arrived = min(n.arrived for n in old)
     world.contents.setdefault(ref.holder, []).append(node)
@@ -289,11 +323,11 @@ def _transform_object(world: World, eid: str, result: str, verb: str, params: di
         raise ActionFailed(f"{eid} is not edible")
     where = world.parent[eid]
     old = world.nodes[eid]
-    node = world.new_node(result, None, frozenset(("edible", "food")), (old,), verb)
+    node = world.new_node(result, None, frozenset(world.domain.engine.result_tags), (old,), verb)
     node.arrived = old.arrived
     _mark(world, node, params, verb, where)
     desc = f"{verb} {world.specs[eid].description}"
-    spec = EntitySpec(result, "movable", desc, "result", ("edible", "food", "movable"), where)
+    spec = EntitySpec(result, "movable", desc, "result", (*world.domain.engine.result_tags, "movable"), where)
     world.remove(eid)
     world.add_entity(spec, node, where)
 

@@ -45,7 +45,23 @@ def _applied(path: tuple, verbs: frozenset, heat: int, after: bool) -> bool:
 
 
 def _in_water(path: tuple) -> bool:
-    return any(n.heated and any(not i.inputs and i.category == "water" for i in n.inputs) for n in path[1:])
+    """Whether a step that heated it had water as a direct input, or it was heated whole in water."""
+    return any(n.wet for n in path) or \
+        any(n.heated and any(not i.inputs and i.category == "water" for i in n.inputs) for n in path[1:])
+
+
+def _chilled(path: tuple, heat: int | None) -> bool:
+    """Whether it was put in a fridge after it was last heated (at any time if never heated)."""
+    last = max((s for n in path for s in n.heated), default=None) if heat is not None else None
+    return any(last is None or c >= last for n in path for c in n.chilled)
+
+
+def _flag(value) -> bool:
+    return value is True or str(value).lower() in ("true", "yes")
+
+
+# keys that are about a heated ingredient (an alternative with any of them needs one)
+_HEAT_KEYS = ("medium", "before_heat", "not_before_heat", "while_hot", "not_while_hot")
 
 
 def _with(path: tuple, names: tuple) -> bool:
@@ -57,8 +73,15 @@ def _path_ok(domain, path: tuple, alt: dict) -> bool:
     if "food" in alt and not _matches(path[0], _split(alt["food"])):
         return False
     heat = _first_heat(path)
-    if heat is None:
+    chilled = alt.get("chilled")
+    if heat is None and (any(k in alt for k in _HEAT_KEYS) or (chilled is not None and not _flag(chilled))):
         return False
+    if chilled is not None and _chilled(path, heat) != _flag(chilled):
+        return False
+    if "made_by" in alt and not any(n.verb in _verbs(domain, alt["made_by"]) for n in path[1:]):
+        return False
+    if heat is None:
+        return "with" not in alt or _with(path, _split(alt["with"]))
     medium = alt.get("medium")
     if medium is not None and _in_water(path) != (medium == "water"):
         return False

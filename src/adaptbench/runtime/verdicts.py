@@ -6,7 +6,7 @@ from __future__ import annotations
 from ..compiler import ast as A
 from ..compiler.model import CompiledDomain, Persona, Task
 from .tables import domain_tables
-from .verify import _KINDS, Ctx, Evaluation, Outcome, Verdict, compiled
+from .verify import Ctx, Evaluation, Outcome, Verdict, compiled
 from .world import World
 
 
@@ -42,7 +42,7 @@ def _results(ctx: Ctx, rule: A.Rule, comps: list, per_dish: bool) -> tuple:
     for c in comps:
         dishes = [d for d in ctx.dishes if ctx.completes(d, (c,))]
         if not dishes:
-            if ctx.domain.component[c].kind in targets or not set(targets) <= _KINDS:
+            if ctx.domain.component[c].kind in targets or not set(targets) <= set(ctx.domain.engine.food_kinds):
                 results.append(Outcome(False, f"{c} was not completed"))
             continue
         dishes = [d for d in dishes if ctx.kind_ok(d, c, targets)]

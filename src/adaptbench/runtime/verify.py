@@ -158,12 +158,10 @@ class Ctx:
     def kind_ok(self, dish: Dish, comp: str, targets) -> bool:
         """Whether a dish of `comp` is among `targets` (a kind target asks the dish's own kind)."""
         c = self.domain.component[comp]
-        if c.alt_kind is None or any(comp in self.expand(t) for t in targets if t not in _KINDS):
+        food = self.domain.engine.food_kinds
+        if c.alt_kind is None or any(comp in self.expand(t) for t in targets if t not in food):
             return True
         return self.kind(dish, comp) in targets
-
-
-_KINDS = frozenset(("sweet", "savory"))
 
 
 def compiled(domain: CompiledDomain, rule: A.Rule, part: str = "expr"):
@@ -194,7 +192,25 @@ def _expr(node, domain):
     if isinstance(node, A.IfElse):
         c, t, e = (_expr(x, domain) for x in (node.cond, node.then, node.other))
         return lambda ctx, it: t(ctx, it) if c(ctx, it).ok else e(ctx, it)
+    if isinstance(node, A.Each):
+        return _each(node, domain)
     return _PREDS[node.op](node, domain)
+
+
+def _each(node: A.Each, domain):
+    """`each S [with X] (expr)`: every dish of S (having an X) satisfies expr on its own."""
+    body = _expr(node.expr, domain)
+    f = node_matcher(node.cls) if node.cls is not None else None
+    which = f"{node.subject} with {render(node.cls)}" if f else node.subject
+
+    def each(ctx, it):
+        dishes = ctx.subject(node.subject, it)
+        if f is not None:
+            dishes = [d for d in dishes if any(f(n, h, c) for n, h, c in d.leaves)]
+        if not dishes:
+            return Outcome(True, f"no {which} served")
+        return _all(body(ctx, [d]) for d in dishes)
+    return each
 
 
 def _all(outcomes) -> Outcome:

@@ -19,7 +19,7 @@ class Node:
     """One edible thing's provenance record (mutable during the episode)."""
 
     __slots__ = ("nid", "name", "category", "tags", "inputs", "verb", "created", "heated", "cut",
-                 "vessels", "arrived", "entity")
+                 "vessels", "arrived", "entity", "wet", "chilled")
 
     def __init__(self, nid, name, category, tags, inputs=(), verb=None, created=0, entity=None):
         self.nid = nid
@@ -30,6 +30,8 @@ class Node:
         self.verb = verb
         self.created = created
         self.heated: list = []  # steps at which it was heated
+        self.wet: tuple = ()  # steps at which it was heated whole in water (an egg boiled in its shell)
+        self.chilled: tuple = ()  # steps at which it was put in a fridge or freezer
         self.cut = False
         self.vessels: set = set()  # entity ids it was heated or made in
         self.arrived = created  # last step it was put into a container
