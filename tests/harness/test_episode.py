@@ -137,6 +137,17 @@ def test_act_batch_must_answer_every_row(domain):
         run_batch(Short(), [("a", Env(domain, "eggs", seed=0)), ("b", Env(domain, "eggs", seed=1))])
 
 
+def test_an_exception_ends_the_batch_and_the_policy_forgets_its_episodes(domain):
+    class Failing(OraclePolicy):
+        def act(self, view):
+            raise RuntimeError("boom")
+
+    policy = Failing(domain)
+    with pytest.raises(RuntimeError, match="boom"):
+        run_batch(policy, [("a", Env(domain, "cereal", persona=domain.personas[0].id, seed=0))])
+    assert policy._plans == {} and policy._runs == {}
+
+
 def test_records_round_trip_and_older_versions_read(tmp_path, domain):
     persona = domain.personas[0].id
     out = tmp_path / "r.jsonl"

@@ -71,17 +71,23 @@ def run_batch(policy: Policy, envs: list) -> list:
     episodes = [Episode(eid, env) for eid, env in envs]
     if len({e.id for e in episodes}) != len(episodes):
         raise ValueError("episode ids in one batch must be distinct")
-    for ep in episodes:
-        policy.start(ep.id, ep.env)
-    running = [ep for ep in episodes if not _finish(policy, ep)]
-    while running:
-        decisions = policy.act_batch([ep.view() for ep in running])
-        if len(decisions) != len(running):
-            raise ValueError(f"{type(policy).__name__}.act_batch returned {len(decisions)} decisions "
-                             f"for {len(running)} views")
-        for ep, decision in zip(running, decisions, strict=True):
-            ep.apply(decision if isinstance(decision, Decision) else Decision(str(decision)))
-        running = [ep for ep in running if not _finish(policy, ep)]
+    running: list = []
+    try:
+        for ep in episodes:
+            running.append(ep)
+            policy.start(ep.id, ep.env)
+        running = [ep for ep in episodes if not _finish(policy, ep)]
+        while running:
+            decisions = policy.act_batch([ep.view() for ep in running])
+            if len(decisions) != len(running):
+                raise ValueError(f"{type(policy).__name__}.act_batch returned {len(decisions)} decisions "
+                                 f"for {len(running)} views")
+            for ep, decision in zip(running, decisions, strict=True):
+                ep.apply(decision if isinstance(decision, Decision) else Decision(str(decision)))
+            running = [ep for ep in running if not _finish(policy, ep)]
+    finally:  # an exception ends the batch: the policy forgets every episode still running
+        for ep in running:
+            policy.end(ep.id)
     return episodes
 
 
