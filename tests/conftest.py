@@ -1,4 +1,9 @@
-"""Shared fixtures: the compiled shipped spec, and golden-file handling."""
+"""Shared fixtures: the compiled shipped spec (`domain`), the small test spec (`small_domain`), and
+golden-file handling.
+
+Tests of the shipped paper spec are marked `paper` (automatically: every test that uses `domain`, or whose
+module's SPEC is spec/): `pytest -m "not paper and not slow"` runs the engine tests alone, on tests/spec_small and on
+specs the tests write, so an extension of spec/ can only break the `paper` tests about it."""
 
 from __future__ import annotations
 
@@ -10,6 +15,20 @@ from adaptbench.compiler import load_domain
 
 ROOT = Path(__file__).resolve().parents[1]
 SPEC = ROOT / "spec"
+SMALL = ROOT / "tests" / "spec_small"
+
+
+def _uses_shipped_domain(item) -> bool:
+    """True when the test's `domain` is this file's (a module may override it with the small spec's)."""
+    info = getattr(item, "_fixtureinfo", None)
+    defs = info.name2fixturedefs.get("domain", ()) if info else ()
+    return bool(defs) and defs[-1].baseid in ("", "tests")
+
+
+def pytest_collection_modifyitems(config, items):
+    for item in items:
+        if _uses_shipped_domain(item) or getattr(getattr(item, "module", None), "SPEC", None) == SPEC:
+            item.add_marker(pytest.mark.paper)
 
 
 def pytest_addoption(parser):
@@ -19,6 +38,11 @@ def pytest_addoption(parser):
 @pytest.fixture(scope="session")
 def domain():
     return load_domain(SPEC, use_cache=False)
+
+
+@pytest.fixture(scope="session")
+def small_domain():
+    return load_domain(SMALL, use_cache=False)
 
 
 @pytest.fixture

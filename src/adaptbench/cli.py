@@ -6,15 +6,16 @@ Run `adapt --help` or `adapt COMMAND --help` for details.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
-from pathlib import Path
 
 EPILOG = """\
 examples:
   adapt validate spec                       check every spec file, one line per problem
   adapt validate spec --format json         the same, as JSON for editors and CI
-  adapt schema --out schemas/               write the JSON Schemas for editor completion
+  adapt test spec                           validate, lint, run spec/fixtures/, check solvability
+  adapt new persona zoe                     a commented persona skeleton that validates
+  adapt vocab --tags                        the tags rules may use, and what each matches
+  adapt schema --out .schemas/              JSON Schemas with the spec's names, for editor completion
   adapt scene --seed 3 --json               the sampled scene for seed 3
   adapt play --task eggs --persona juan     play an episode in the terminal
   adapt replay --task eggs --persona juan --full-scene actions.txt --json
@@ -22,10 +23,10 @@ examples:
 
 
 def _cmd_validate(args) -> int:
-    from .compiler import compile_spec
+    from .compiler import compile_cached
     from .compiler.diagnostics import render_all
 
-    domain, diags = compile_spec(args.spec_dirs)
+    domain, diags = compile_cached(args.spec_dirs)
     if args.format == "json":
         print(render_all(diags, "json"))
     elif diags:
@@ -45,17 +46,6 @@ def _cmd_validate(args) -> int:
     return 0
 
 
-def _cmd_schema(args) -> int:
-    from .compiler.loader import SCHEMA_KINDS, schema
-
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    for kind in SCHEMA_KINDS:
-        (out / f"{kind}.schema.json").write_text(json.dumps(schema(kind), indent=2) + "\n")
-        print(out / f"{kind}.schema.json")
-    return 0
-
-
 def _add_validate(sub) -> None:
     p = sub.add_parser("validate", help="check spec files and report every problem with file:line:col",
                        description="Compile the spec directories and report every problem at once. "
@@ -67,12 +57,6 @@ def _add_validate(sub) -> None:
     p.set_defaults(func=_cmd_validate)
 
 
-def _add_schema(sub) -> None:
-    p = sub.add_parser("schema", help="write the JSON Schemas of the spec files (for editors)")
-    p.add_argument("--out", required=True, help="directory to write *.schema.json into")
-    p.set_defaults(func=_cmd_schema)
-
-
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser for `adapt` and all subcommands."""
     parser = argparse.ArgumentParser(
@@ -80,13 +64,24 @@ def build_parser() -> argparse.ArgumentParser:
         "evaluate preference satisfaction.", epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     _add_validate(sub)
-    _add_schema(sub)
-    from . import cli_episode, cli_grammar, cli_runs
+    from . import cli_author, cli_episode, cli_grammar, cli_runs
 
+    cli_author.add_commands(sub)
     cli_episode.add_commands(sub)
     cli_runs.add_commands(sub)
     cli_grammar.add_commands(sub)
     return parser
+
+
+def report_spec_error(exc, spec=None) -> None:
+    """The one report every command gives on a spec that does not compile: each located diagnostic, then a
+    count, on stderr (the command then exits 1)."""
+    from .compiler.diagnostics import render_all
+
+    errors = sum(d.severity == "error" for d in exc.diagnostics)
+    print(render_all(exc.diagnostics), file=sys.stderr)
+    where = f" in {spec}" if isinstance(spec, str) else ""
+    print(f"adapt: {errors} error(s){where}; fix them and run again (`adapt validate` lists them)", file=sys.stderr)
 
 
 def main(argv=None) -> int:
@@ -105,17 +100,16 @@ def main(argv=None) -> int:
     except BrokenPipeError:
         return 0
     except Exception as exc:  # noqa: BLE001 - the one place that turns expected failures into messages
-        return _report(exc)
+        return _report(exc, getattr(args, "spec", None))
 
 
-def _report(exc: Exception) -> int:
+def _report(exc: Exception, spec=None) -> int:
     """Print a spec error's diagnostics or a file problem as a message; anything else is a bug and keeps
     its traceback."""
     from .compiler import SpecError
 
     if isinstance(exc, SpecError):
-        print(str(exc), file=sys.stderr)
-        print("the spec has errors: run `adapt validate` for details", file=sys.stderr)
+        report_spec_error(exc, spec)
         return 1
     if isinstance(exc, OSError) and exc.filename:
         print(f"adapt: {exc.filename}: {exc.strerror or exc}", file=sys.stderr)

@@ -64,10 +64,14 @@ def _cmd_show(args) -> int:
     return 0
 
 
+# grammars.LEVELS and grammars.VARIANTS, written out so that building the parser does not import the
+# grammar code (and the compiler behind it); tests/grammars/test_cli_grammar.py checks they agree.
+LEVELS = ("syntax", "observed", "typed")
+VARIANTS = ("default", "never_ask", "ask_only")
+
+
 def add_commands(sub) -> None:
     """Register `adapt grammar` and its subcommands."""
-    from .grammars import LEVELS, VARIANTS
-
     g = sub.add_parser("grammar", help="build, check or show the action grammars",
                        description="The action grammars generated from spec/: `build` writes grammars/, "
                                    "`check` fails when they drift from spec/, `show` prints a state's grammar.")

@@ -7,7 +7,8 @@ import pytest
 
 from adaptbench.compiler import load_domain, spec_hash
 
-from .helpers import SPEC, adapt
+from ..conftest import SMALL as SPEC  # engine test: the small test spec
+from .helpers import adapt
 
 
 def _corrupt(path, how: str) -> None:
@@ -26,25 +27,25 @@ def _corrupt(path, how: str) -> None:
 
 @pytest.mark.parametrize("how", ["truncated", "edited", *(pytest.param(h, marks=pytest.mark.slow)
                                                           for h in ("garbage", "empty", "old format"))])
-def test_broken_cache_is_rebuilt(tmp_path, monkeypatch, capsys, domain, how):
+def test_broken_cache_is_rebuilt(tmp_path, monkeypatch, capsys, small_domain, how):
     monkeypatch.setenv("ADAPT_CACHE", str(tmp_path))
     load_domain(SPEC)
     path = tmp_path / f"domain-{spec_hash([SPEC])}.json"
     _corrupt(path, how)
     capsys.readouterr()
-    assert load_domain(SPEC).to_json() == domain.to_json()
+    assert load_domain(SPEC).to_json() == small_domain.to_json()
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and str(path) in err and "rebuilding" in err
-    assert load_domain(SPEC).to_json() == domain.to_json() and capsys.readouterr().err == ""  # healed
+    assert load_domain(SPEC).to_json() == small_domain.to_json() and capsys.readouterr().err == ""  # healed
 
 
-def test_broken_cache_in_a_command(tmp_path, domain):
+def test_broken_cache_in_a_command(tmp_path):
     env = {"ADAPT_CACHE": str(tmp_path)}
     import os
 
     env = {**os.environ, **env}
-    assert adapt(["scene", "--seed", "0"], env=env).returncode == 0
+    assert adapt(["scene", "--seed", "0", "--spec", SPEC], env=env).returncode == 0
     path = tmp_path / f"domain-{spec_hash([SPEC])}.json"
     _corrupt(path, "truncated")
-    r = adapt(["scene", "--seed", "0"], env=env)
+    r = adapt(["scene", "--seed", "0", "--spec", SPEC], env=env)
     assert r.returncode == 0 and str(path) in r.stderr and "Traceback" not in r.stderr

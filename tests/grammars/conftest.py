@@ -12,7 +12,7 @@ from adaptbench.grammars import GrammarCache, build_index
 from adaptbench.runtime.env import Env
 
 ROOT = Path(__file__).resolve().parents[2]
-FIXTURES = sorted((ROOT / "tests" / "fixtures" / "trajectories").rglob("*.yaml"))
+FIXTURES = sorted((ROOT / "spec" / "fixtures" / "trajectories").rglob("*.yaml"))  # the shipped spec's fixtures
 EXAMPLES = {"toast_coffee.txt": "toast_coffee", "fifty_steps.txt": "eggs"}
 
 
@@ -61,6 +61,7 @@ def replay_states(domain):
 
 @pytest.fixture(scope="session")
 def states(domain):
+    assert FIXTURES, "no trajectory fixtures under spec/fixtures/trajectories"
     return replay_states(domain)
 
 

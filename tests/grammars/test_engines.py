@@ -6,7 +6,7 @@ import random
 
 import pytest
 
-from adaptbench.grammars import StateGrammar, build_base
+from adaptbench.grammars import StateGrammar, build_base, build_index
 from adaptbench.grammars.parse import lark_parser, parse
 from adaptbench.grammars.sample import sample
 from adaptbench.runtime.env import Env
@@ -23,6 +23,17 @@ _BREAKERS = [
 _FIXED_INVALID = ["", " ", "Ask", 'Ask ""', 'Ask "a"b"', "Ask hello", 'Ask "line\nbreak"', "Declare done",
                   "frobnicate items in pan_0 to get x", "Chop pan_0 to get X", "Mix all items in pan_0 to get 9x",
                   "Look for", "Look for  eggs", "Look for eggs ", "Turn on", "Move to pan_0"]
+
+
+@pytest.fixture(scope="module")
+def domain(small_domain):
+    """Engine test: the small test spec (tests/spec_small), not the paper's."""
+    return small_domain
+
+
+@pytest.fixture(scope="module")
+def index(domain):
+    return build_index(domain)
 
 
 def _corpus(index, observed, level, rng) -> tuple[list, list]:

@@ -4,9 +4,23 @@ from __future__ import annotations
 
 import random
 
+import pytest
+
+from adaptbench.grammars import build_index
 from adaptbench.grammars.sample import sample
 from adaptbench.runtime.actions import compile_templates, match
 from adaptbench.runtime.env import Env
+
+
+@pytest.fixture(scope="module")
+def domain(small_domain):
+    """Engine test: the small test spec (tests/spec_small), not the paper's."""
+    return small_domain
+
+
+@pytest.fixture(scope="module")
+def index(domain):
+    return build_index(domain)
 
 
 def test_observed_starts_with_the_layout_and_grows_with_discovery(domain, index):

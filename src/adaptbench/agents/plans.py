@@ -175,9 +175,9 @@ class Executor:
                     out.append(v)
             out = tuple(out)
         else:
-            exclusive = key.split(".")[0] != PLAN  # a pan, plate or cup belongs to one choice only
+            exclusive = key.split(".")[0] != PLAN  # a plate or cup belongs to one choice only
             order = [v for v in [chosen] + self._fallbacks(choice, chosen)
-                     if not (exclusive and self.vessels.get(v, key) != key)]
+                     if not (exclusive and not self._reusable(v) and self.vessels.get(v, key) != key)]
             out = chosen
             for v in order:
                 if v == "none" or (yield from self.usable(v, needs.get(v, ()))):
@@ -187,6 +187,11 @@ class Executor:
                 self.vessels[out] = key
         self.resolved[key] = out
         return out
+
+    def _reusable(self, value: str) -> bool:
+        """Cookware is emptied onto a plate before the next recipe runs, so recipes may share a pan."""
+        spec = self.domain.entity.get(value)
+        return spec is not None and "cookware" in spec.tags
 
     def _movable(self, value: str) -> bool:
         spec = self.domain.entity.get(value)

@@ -298,12 +298,20 @@ def _category(domain: CompiledDomain, value: str) -> str:
     return next((f for f in families if f in item.tags or f == item.category), item.category)
 
 
+_LAYERS = frozenset(("breakfast_cereal", "fruit", "nut", "seed"))  # what layers a parfait: one can stand in for another
+
+
+def _swappable(domain: CompiledDomain, old: str, new: str) -> bool:
+    a, b = _category(domain, old), _category(domain, new)
+    return a == b or (a in _LAYERS and b in _LAYERS)
+
+
 def swaps(domain: CompiledDomain, choice: Choice, current: tuple, names: set):
-    """Multi-choice values with one chosen item replaced by a relevant item of the same category."""
+    """Multi-choice values with one chosen item replaced by a relevant item of the same family (fruit, nuts,
+    seeds and cereal stand in for each other: muesli for the last banana of a no-fruit parfait)."""
     for old in current:
         for new in choice.values:
-            if new not in current and _category(domain, new) == _category(domain, old) \
-                    and _relevant(domain, choice, new, names):
+            if new not in current and _swappable(domain, old, new) and _relevant(domain, choice, new, names):
                 yield tuple(new if x == old else x for x in current)
 
 

@@ -8,19 +8,21 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
+import json
 import os
 import sys
+from dataclasses import astuple
 from pathlib import Path
 
-from .build import ADDERS, Draft
-from .checks import check_all
 from .diagnostics import Diagnostic, SpecError
-from .lint import lint
-from .loader import load_file, spec_files, validate_schema
+from .loader import spec_files
 from .model import CompiledDomain
-from .sanity import check_location_cycles, check_templates
 
-__all__ = ["CompiledDomain", "Diagnostic", "SpecError", "compile_spec", "load_domain", "spec_hash"]
+# The passes (build, checks, lint, sanity: lark and jsonschema) are imported inside compile_spec, so that a
+# command that finds the domain in the cache starts in a few tens of milliseconds.
+
+__all__ = ["CompiledDomain", "Diagnostic", "SpecError", "compile_cached", "compile_spec", "load_domain",
+           "spec_hash"]
 
 COMPILER_VERSION = "4"  # bump when the compiled form or its cache format changes
 
@@ -46,6 +48,11 @@ def spec_hash(spec_dirs) -> str:
 
 def compile_spec(spec_dirs) -> tuple[CompiledDomain | None, list[Diagnostic]]:
     """Compile spec directories; return the domain (None if any error) and all diagnostics."""
+    from .build import Draft
+    from .checks import check_all
+    from .lint import lint
+    from .sanity import check_location_cycles, check_templates
+
     dirs = [Path(d) for d in spec_dirs]
     draft = Draft()
     _read_all(draft, _files(draft, dirs))
@@ -62,7 +69,7 @@ def compile_spec(spec_dirs) -> tuple[CompiledDomain | None, list[Diagnostic]]:
     return domain, sorted(draft.diags)
 
 
-def _files(draft: Draft, dirs: list) -> list:
+def _files(draft, dirs: list) -> list:
     """The spec files of the directories; S003/S004 for a missing or empty one, D501 with no engine.yaml."""
     for d in dirs:
         if not d.is_dir():
@@ -78,8 +85,11 @@ def _files(draft: Draft, dirs: list) -> list:
     return files
 
 
-def _read_all(draft: Draft, files: list) -> None:
+def _read_all(draft, files: list) -> None:
     """Load, schema-check and add every file to the draft."""
+    from .build import ADDERS
+    from .loader import load_file, validate_schema
+
     for kind, path in files:
         doc, diags = load_file(path, _display(path))
         draft.diags.extend(diags)
@@ -100,7 +110,7 @@ def _unique(items):
     return tuple(out)
 
 
-def _freeze(draft: Draft, digest: str) -> CompiledDomain:
+def _freeze(draft, digest: str) -> CompiledDomain:
     return CompiledDomain(
         spec_hash=digest,
         entities=_unique(draft.entities),
@@ -150,6 +160,32 @@ def load_domain(spec_dir="spec", use_cache: bool = True) -> CompiledDomain:
     return domain
 
 
+def compile_cached(spec_dirs) -> tuple[CompiledDomain | None, list[Diagnostic]]:
+    """`compile_spec` through the cache: a spec compiled before (same files, same working directory, so the
+    same paths in the diagnostics) is read back with its warnings instead of compiled again."""
+    dirs = [Path(d) for d in spec_dirs]
+    digest = spec_hash(dirs)
+    where = "\0".join([digest, os.getcwd(), *map(str, dirs)])
+    dpath = cache_dir() / f"domain-{digest}.json"
+    wpath = cache_dir() / f"diags-{hashlib.sha256(where.encode()).hexdigest()[:16]}.json"
+    if dpath.exists() and wpath.exists():
+        domain, diags = _read_cache(dpath, digest), _read_diags(wpath)
+        if domain is not None and diags is not None:
+            return domain, diags
+    domain, diags = compile_spec(dirs)
+    if domain is not None:
+        _write_cache(dpath, domain)
+        _write_bytes(wpath, json.dumps([list(astuple(d)) for d in diags]).encode())
+    return domain, diags
+
+
+def _read_diags(path: Path) -> list[Diagnostic] | None:
+    try:
+        return [Diagnostic(*row) for row in json.loads(path.read_text())]
+    except (OSError, ValueError, TypeError):
+        return None
+
+
 _MAGIC = "adaptbench-domain-cache"
 
 
@@ -175,7 +211,10 @@ def _read_cache(path: Path, digest: str) -> CompiledDomain | None:
 
 def _write_cache(path: Path, domain: CompiledDomain) -> None:
     body = domain.to_json().encode("utf-8")
-    data = f"{_MAGIC} {hashlib.sha256(body).hexdigest()}\n".encode() + body
+    _write_bytes(path, f"{_MAGIC} {hashlib.sha256(body).hexdigest()}\n".encode() + body)
+
+
+def _write_bytes(path: Path, data: bytes) -> None:
     tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")  # one per writer: concurrent runs never interleave
     try:
         path.parent.mkdir(parents=True, exist_ok=True)

@@ -4,11 +4,15 @@ from __future__ import annotations
 
 import json
 from functools import cache
-from importlib import resources
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from .diagnostics import Diagnostic, did_you_mean
-from .yamlpos import LoadedDoc, load_yaml
+
+# yamlpos (PyYAML) is imported where a file is read: hashing the spec to find a cached domain needs only
+# spec_files.
+if TYPE_CHECKING:
+    from .yamlpos import LoadedDoc
 
 KINDS = {"objects": "objects", "actions": "actions", "tasks": "tasks", "personas": "persona"}
 ROOT_FILES = {"engine.yaml": "engine", "splits.yaml": "splits"}  # single files at the top of a spec dir
@@ -31,12 +35,16 @@ def spec_files(spec_dirs: list[Path]) -> list[tuple[str, Path]]:
 @cache
 def schema(kind: str) -> dict:
     """The JSON Schema for one kind of spec file (shipped as package data)."""
+    from importlib import resources
+
     text = resources.files("adaptbench.compiler").joinpath(f"schemas/{kind}.schema.json").read_text()
     return json.loads(text)
 
 
 def load_file(path: Path, display: str) -> tuple[LoadedDoc | None, list[Diagnostic]]:
     """Read and parse one YAML file."""
+    from .yamlpos import load_yaml
+
     try:
         data = path.read_bytes()
     except OSError as exc:
@@ -51,6 +59,7 @@ def load_file(path: Path, display: str) -> tuple[LoadedDoc | None, list[Diagnost
     return load_yaml(text, display)
 
 
+@cache
 def _validator(kind: str):
     import jsonschema  # imported lazily: the cached path never needs it
 

@@ -197,7 +197,10 @@ def load_yaml(text: str, file: str) -> tuple[LoadedDoc | None, list[Diagnostic]]
     except yaml.MarkedYAMLError as exc:
         mark = exc.problem_mark or exc.context_mark
         line, col = (mark.line + 1, mark.column + 1) if mark else (1, 1)
-        return None, [Diagnostic(file, line, col, "S000", f"YAML syntax error: {exc.problem}")]
+        from .yamlhints import hint
+
+        why = hint(f"{exc.context or ''} {exc.problem or ''}", text, line, col)
+        return None, [Diagnostic(file, line, col, "S000", f"YAML syntax error: {exc.problem}" + (f" ({why})" if why else ""))]
     except yaml.YAMLError as exc:  # reader errors (unprintable characters) carry no mark
         return None, [Diagnostic(file, 1, 1, "S000", f"YAML error: {exc}")]
     except _Reject as exc:

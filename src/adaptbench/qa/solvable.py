@@ -12,25 +12,30 @@ _DOMAINS: dict = {}
 
 
 def _one(args) -> list:
-    spec, persona, task, seed = args
+    spec, digest, persona, task, seed = args
     from ..agents.scripted import play
     from ..compiler import load_domain
     from ..runtime.env import Env
 
-    if spec not in _DOMAINS:
-        _DOMAINS[spec] = load_domain(spec)
-    d = _DOMAINS[spec]
+    if (spec, digest) not in _DOMAINS:  # keyed by content too: the files at a path may change between calls
+        _DOMAINS[(spec, digest)] = load_domain(spec)
+    d = _DOMAINS[(spec, digest)]
     env = Env(d, task=task, persona=persona, seed=seed)
     env.reset()
     play("oracle", env)
     return [(persona, task, seed, v.id, v.reason) for v in env.evaluate().verdicts if v.verdict == "violated"]
 
 
-def unsolved(spec: str, personas: list, tasks: list, seeds: list, workers: int = 1) -> list:
+def unsolved(spec: str, personas: list, tasks: list, seeds: list, workers: int = 1, progress: bool = True) -> list:
     """(persona, task, seed, preference, reason) for every applicable preference the oracle violates."""
-    jobs = [(spec, p, t, s) for p in personas for t in tasks for s in seeds]
+    import io
+
+    from ..compiler import spec_hash
+
+    digest = spec_hash([spec])
+    jobs = [(spec, digest, p, t, s) for p in personas for t in tasks for s in seeds]
     out = []
-    with Progress(len(jobs), "check-solvable") as bar:
+    with Progress(len(jobs), "check-solvable", stream=None if progress else io.StringIO()) as bar:
         if workers <= 1:
             for j in jobs:
                 out += _one(j)

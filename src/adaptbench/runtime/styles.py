@@ -56,6 +56,12 @@ def _chilled(path: tuple, heat: int | None) -> bool:
     return any(last is None or c >= last for n in path for c in n.chilled)
 
 
+def _heated_after_added(path: tuple) -> bool:
+    """Whether a step heated it, or a dish it went into, after it was last put into a container."""
+    added = path[0].arrived
+    return any(s >= added for n in path for s in n.heated)
+
+
 def _flag(value) -> bool:
     return value is True or str(value).lower() in ("true", "yes")
 
@@ -77,6 +83,8 @@ def _path_ok(domain, path: tuple, alt: dict) -> bool:
     if heat is None and (any(k in alt for k in _HEAT_KEYS) or (chilled is not None and not _flag(chilled))):
         return False
     if chilled is not None and _chilled(path, heat) != _flag(chilled):
+        return False
+    if "heated_after_added" in alt and _heated_after_added(path) != _flag(alt["heated_after_added"]):
         return False
     if "made_by" in alt and not any(n.verb in _verbs(domain, alt["made_by"]) for n in path[1:]):
         return False

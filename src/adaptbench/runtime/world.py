@@ -184,8 +184,10 @@ class World:
 
     # ---- changes
     def relocate(self, eid: str, target: str) -> None:
-        """Move entity `eid` into/onto `target`."""
+        """Move entity `eid` into/onto `target` (where it already is: nothing changes, it does not re-arrive)."""
         old = self.parent.get(eid)
+        if old == target:
+            return
         if old is not None:
             self.children[old].remove(eid)
         self.parent[eid] = target
