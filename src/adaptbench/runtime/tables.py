@@ -53,6 +53,10 @@ class LRU:
         hit = self.get(key, _MISSING)
         return self.put(key, build()) if hit is _MISSING else hit
 
+    def clear(self) -> None:
+        """Forget every entry."""
+        self._data.clear()
+
     def __len__(self) -> int:
         return len(self._data)
 
