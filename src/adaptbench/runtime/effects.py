@@ -200,17 +200,14 @@ def _heat_entity(world: World, eid: str) -> None:
 
 def _in_water(world: World, holder: str | None) -> bool:
     """Whether `holder` holds water (an object in it sits in water)."""
-    return holder is not None and any(n.category == "water" for n in world.contents.get(holder, ()))
-
-
-# Where a thing put in is chilled (issue 6, item 5: a drink cooled in the fridge is not hot). The
-# furniture categories are engine vocabulary until spec/ can name them.
-_COLD = frozenset(("fridge", "freezer"))
+    water = world.domain.engine.water
+    return holder is not None and any(n.category == water for n in world.contents.get(holder, ()))
 
 
 def _cold_ids(domain) -> frozenset:
     """The catalogue ids of cold furniture (kept with the domain)."""
-    return frozenset(e.id for e in domain.entities if e.category in _COLD)
+    cold = frozenset(domain.engine.cold_places)
+    return frozenset(e.id for e in domain.entities if e.category in cold)
 
 
 def _is_cold(world: World, target: str) -> bool:
