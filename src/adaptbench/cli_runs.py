@@ -102,6 +102,9 @@ def _load_runs(args):
         raise SystemExit(1)
     if runs.skipped:
         print(f"adapt: {runs.skipped_text()}", file=sys.stderr)
+    if runs.unversioned:
+        print(f"adapt: note: {runs.unversioned} record(s) predate versioned records (read as version 0)",
+              file=sys.stderr)
     if not runs.records:
         print(f"adapt: no usable episode records in {', '.join(args.runs)}", file=sys.stderr)
         raise SystemExit(1)
@@ -130,7 +133,7 @@ def _tables(args, records: list) -> tuple:
                 lambda: b.render_markdown(rows, args.by))
     from .harness.evaluate import render_csv, render_markdown, render_text, table
 
-    rows = table(records, _splits(args)() if any("split" in r for r in records) else None)
+    rows = table(records, _splits(args)() if any(r.split is not None for r in records) else None)
     return rows, render_text(rows), lambda: render_csv(rows), lambda: render_markdown(rows)
 
 
@@ -146,7 +149,7 @@ def _cmd_eval(args) -> int:
     records = _load_runs(args).records
     rows, text, csv_text, md_text = _tables(args, records)
     print(text)
-    none = sum(1 for r in records if r.get("satisfaction_rate") is None)
+    none = sum(1 for r in records if r.satisfaction_rate is None)
     if none and not args.by:
         print(f"{none} episode(s) had no applicable preference and are left out of the satisfaction rates")
     if args.plot:
@@ -161,7 +164,7 @@ def _cmd_eval(args) -> int:
 def _agent_rows(args, records: list) -> list:
     from .harness.evaluate import table
 
-    return table(records, _splits(args)() if any("split" in r for r in records) else None)
+    return table(records, _splits(args)() if any(r.split is not None for r in records) else None)
 
 
 def _plot(path: str, rows: list, records: list) -> None:

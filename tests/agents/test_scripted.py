@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from adaptbench.agents.plans import all_recipes, defaults, execute
-from adaptbench.agents.scripted import RUNNERS, interpret
+from adaptbench.agents.scripted import interpret, play
 from adaptbench.agents.users import OfflineUser
 from adaptbench.compiler.model import Persona, Preference
 from adaptbench.compiler.rules import parse_rule
@@ -27,7 +27,7 @@ def _run(domain, agent, task="toast_coffee", seed=0):
     persona = _zed(domain)
     env = Env(domain, task=task, persona=persona, seed=seed, user=OfflineUser(domain, persona, domain.task[task]))
     env.reset()
-    RUNNERS[agent](env)
+    play(agent, env)
     return env, env.evaluate()
 
 
@@ -44,7 +44,7 @@ def test_never_ask_completes_every_task_without_questions(domain):
 def test_agents_look_before_they_use(domain):
     env = Env(domain, task="cereal", seed=1)
     env.reset()
-    RUNNERS["never-ask"](env)
+    play("never-ask", env)
     seen_look = False
     for e in env.world.trace:
         seen_look |= e.text.startswith("Look for")
@@ -88,7 +88,7 @@ def test_a_component_without_recipe_is_said_not_skipped_silently(domain, capsys)
     persona = _zed(d)
     env = Env(d, task="toast_coffee", persona=persona, seed=0, user=OfflineUser(d, persona, task))
     env.reset()
-    RUNNERS["never-ask"](env)
-    RUNNERS["never-ask"](env)
+    play("never-ask", env)
+    play("never-ask", env)
     err = capsys.readouterr().err
     assert err.count("no recipe for component toast") == 1  # once per domain, on stderr

@@ -10,7 +10,7 @@ import pytest
 from lark import Lark, Tree
 
 from adaptbench.agents.normalise import normalise
-from adaptbench.agents.scripted import RUNNERS
+from adaptbench.agents.scripted import play
 from adaptbench.agents.users import OfflineUser
 from adaptbench.grammars.parser import keyword_collisions
 from adaptbench.grammars.sample import sample
@@ -55,7 +55,7 @@ def test_recipe_runs_parse_as_the_regex_path_read_them(domain, parser, templates
         persona = next(iter(domain.persona))
         env = Env(domain, task, persona=persona, seed=1,
                   user=OfflineUser(domain, domain.persona[persona], domain.task[task]))
-        RUNNERS[agent](env)
+        play(agent, env)
         texts |= {e.text for e in env.world.trace}
     assert len(texts) > 50
     for text in sorted(texts):

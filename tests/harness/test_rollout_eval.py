@@ -6,6 +6,7 @@ import json
 
 from adaptbench.cli import main
 from adaptbench.harness.evaluate import mean_se, table
+from adaptbench.harness.record import EpisodeRecord
 from adaptbench.harness.rollout import Job, done_keys, parse_seeds, rollout
 
 from ..conftest import SPEC
@@ -35,8 +36,8 @@ def test_rollout_appends_and_resumes(tmp_path, domain):
 
 
 def test_table_seen_unseen_and_se(domain):
-    recs = [{"agent": "x", "persona": "juan", "satisfaction_rate": 1.0, "questions": 2, "split": 1},
-            {"agent": "x", "persona": "ron", "satisfaction_rate": 0.5, "questions": 4, "split": 1}]
+    recs = [EpisodeRecord.from_dict({"agent": "x", "persona": p, "task": "eggs", "seed": 0, "satisfaction_rate": r,
+                                     "questions": q, "split": 1}) for p, r, q in (("juan", 1.0, 2), ("ron", 0.5, 4))]
     row = table(recs, domain.unseen)[0]
     assert "juan" in domain.unseen[1]
     assert row["rate_unseen"] == (1.0, 0.0) and row["rate_seen"] == (0.5, 0.0)
@@ -58,9 +59,9 @@ def test_cli_rollout_then_eval(tmp_path, domain, capsys):
 def test_eval_plot_is_a_png_with_every_agent_and_persona(tmp_path):
     from adaptbench.harness.plots import draw, persona_matrix
 
-    recs = [{"agent": a, "persona": p, "satisfaction_rate": r, "questions": q}
+    recs = [EpisodeRecord(a, p, "eggs", 0, satisfaction_rate=r, questions=q)
             for a, r, q in (("never-ask", 0.3, 0), ("oracle", 0.9, 0)) for p in ("juan", "ron")]
-    recs.append({"agent": "oracle", "persona": "lisa", "satisfaction_rate": None, "questions": 0})
+    recs.append(EpisodeRecord("oracle", "lisa", "eggs", 0, satisfaction_rate=None, questions=0))
     out = tmp_path / "t.png"
     draw(table(recs), recs, out)
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and out.stat().st_size > 5000

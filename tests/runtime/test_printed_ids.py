@@ -11,7 +11,7 @@ import re
 
 import pytest
 
-from adaptbench.agents.scripted import RUNNERS
+from adaptbench.agents.scripted import play
 from adaptbench.runtime.actions import ActionFailed, _bind_one
 from adaptbench.runtime.env import Env
 
@@ -44,7 +44,7 @@ def _unbound(world, text: str) -> list:
 def _actions(domain, runner: str, persona: str, task: str, seed: int) -> list:
     env = Env(domain, task=task, persona=persona, seed=seed)
     env.reset()
-    RUNNERS[runner](env)
+    play(runner, env)
     return [e.text for e in env.world.trace]
 
 

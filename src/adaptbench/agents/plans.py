@@ -10,9 +10,11 @@ from __future__ import annotations
 
 import re
 import sys
+from dataclasses import dataclass
 
 from ..compiler.model import CompiledDomain, Recipe, Task
 from ..runtime.env import Env
+from ..runtime.tables import domain_tables
 
 PLAN = "plan"
 _VAR = re.compile(r"\{(src:)?(\w+)\}")
@@ -85,36 +87,37 @@ def _order(domain: CompiledDomain, recipes: list, order: str) -> list:
 
 
 def _by_category(domain: CompiledDomain) -> dict:
-    """Substance ids by category (built once per domain, kept with it)."""
-    def build(d: CompiledDomain) -> dict:
-        table: dict = {}
-        for s in d.substances:
-            table.setdefault(s.category, []).append(s.id)
-        return table
-    return domain.derived("plans.by_category", build)
+    """Substance ids by category (from the domain's tables, built once per domain)."""
+    return domain_tables(domain).substances_by_category
 
 
 class Executor:
-    """Runs an assignment in an env, exploring as it goes."""
+    """Carries out an assignment one action at a time, exploring as it goes.
 
-    def __init__(self, env: Env, assignment: dict):
-        self.env, self.domain, self.assignment = env, env.domain, assignment
+    `steps()` is a generator: it yields each action's text and is sent back a `Feedback` (whether the
+    action succeeded, the user's reply, what the agent has seen since). It reads only what the agent
+    has found (`seen`, a `runtime.seen.Seen`)."""
+
+    def __init__(self, domain: CompiledDomain, task: Task, assignment: dict, seen=None):
+        self.domain, self.task, self.assignment = domain, task, assignment
+        self.seen = seen
         self.looked: set = set()
         self.taken: set = set()
         self.resolved: dict = {}
         self.vessels: dict = {}  # movable entity -> the choice that claimed it (plates, cups, pans)
 
-    # ---- knowledge
-    @property
-    def world(self):
-        """The world (only `known` things are used)."""
-        return self.env.world
+    def steps(self):
+        """Every recipe of the plan in order, each served as it is finished, then Declare Done."""
+        _say_missing(self.domain, self.task)
+        for recipe in task_recipes(self.domain, self.task, self.assignment):
+            yield from self.run_recipe(recipe)
+        yield from self.act("Declare Done")
 
-    def act(self, text: str) -> bool:
-        """Step the env unless it is over; True on success."""
-        if self.env.done:
-            return False
-        return self.env.step(text).ok
+    def act(self, text: str):
+        """Take one action; True on success (what the agent has seen is refreshed from the feedback)."""
+        feedback = yield text
+        self.seen = feedback.seen
+        return feedback.ok
 
     def query_for(self, value: str) -> str:
         """The category word to `Look for` a value by."""
@@ -125,34 +128,33 @@ class Executor:
             return d.entity[value].category
         return value
 
-    def find(self, value: str) -> bool:
+    def find(self, value: str):
         """Make sure `value` (entity id, substance or category) is known; look for it if needed."""
         if self._known(value):
             return True
         query = self.query_for(value)
         if query not in self.looked:
             self.looked.add(query)
-            self.act(f"Look for {query.replace('_', ' ')}")
+            yield from self.act(f"Look for {query.replace('_', ' ')}")
         return self._known(value)
 
     def _known(self, value: str) -> bool:
-        w, d = self.world, self.domain
-        if value in d.entity or value in w.specs:
-            return value in w.known
+        seen, d = self.seen, self.domain
+        if value in d.entity or seen.knows(value):
+            return seen.knows(value)
         if value in d.substance:
-            return bool(self._holders(value))
-        return any(w.specs[e].category == value for e in w.known if e in w.specs and e not in self.taken) or \
-            any(self._holders(s) for s in _by_category(d).get(value, ()))
-
-    def _holders(self, substance: str) -> list:
-        return self.world.holders_of(substance)
+            return bool(seen.holders_of(value))
+        return any(seen.category(e) == value for e in seen.known() if e not in self.taken) or \
+            any(seen.holders_of(s) for s in _by_category(d).get(value, ()))
 
     # ---- choices
-    def usable(self, value: str, needs: tuple) -> bool:
+    def usable(self, value: str, needs: tuple):
         """Whether an option can be used (finding what it needs)."""
         catalogue = value in self.domain.entity or value in self.domain.substance or self._is_category(value)
-        items = list(needs) + ([value] if catalogue else [])
-        return all(self.find(i) for i in items)
+        for item in list(needs) + ([value] if catalogue else []):
+            if not (yield from self.find(item)):
+                return False
+        return True
 
     def _is_category(self, value: str) -> bool:
         return any(c == value for c, _ in self.domain.categories)
@@ -167,12 +169,20 @@ class Executor:
         chosen = self.assignment.get(key, choice.default if choice.multi else choice.default[0])
         needs = {o.value: o.needs for o in choice.options}
         if choice.multi:
-            out = tuple(v for v in chosen if v == "none" or self.usable(v, needs.get(v, ())))
+            out = []
+            for v in chosen:
+                if v == "none" or (yield from self.usable(v, needs.get(v, ()))):
+                    out.append(v)
+            out = tuple(out)
         else:
             exclusive = key.split(".")[0] != PLAN  # a plate or cup belongs to one choice only
             order = [v for v in [chosen] + self._fallbacks(choice, chosen)
                      if not (exclusive and not self._reusable(v) and self.vessels.get(v, key) != key)]
-            out = next((v for v in order if v == "none" or self.usable(v, needs.get(v, ()))), chosen)
+            out = chosen
+            for v in order:
+                if v == "none" or (yield from self.usable(v, needs.get(v, ()))):
+                    out = v
+                    break
             if exclusive and self._movable(out):
                 self.vessels[out] = key
         self.resolved[key] = out
@@ -194,38 +204,39 @@ class Executor:
         return [v for v in others if self.query_for(v) == cat] + [v for v in others if self.query_for(v) != cat]
 
     # ---- steps
-    def run_recipe(self, recipe: Recipe) -> None:
+    def run_recipe(self, recipe: Recipe):
         """Execute a recipe and serve its vessel (an optional recipe with nothing chosen does nothing)."""
         if recipe.optional and not any(self._chosen(recipe, c) for c in recipe.choices if c.multi):
             return
-        self.run_steps(recipe, recipe.steps, {})
-        vessel, place = self.value(recipe, recipe.serve), self.value(recipe, "place")
-        if self.find(vessel) and self._holds_food(vessel):
-            self.act(f"Move {vessel} to {place}")
+        yield from self.run_steps(recipe, recipe.steps, {})
+        vessel = yield from self.value(recipe, recipe.serve)
+        place = yield from self.value(recipe, "place")
+        if (yield from self.find(vessel)) and self.seen.holds_food(vessel):
+            yield from self.act(f"Move {vessel} to {place}")
 
     def _chosen(self, recipe: Recipe, choice) -> bool:
         return bool(self.assignment.get(f"{recipe.id}.{choice.id}", choice.default))
 
-    def _holds_food(self, vessel: str) -> bool:
-        w = self.world
-        return bool(w.contents.get(vessel)) or any(c in w.nodes for c in w.children.get(vessel, ()))
-
-    def run_steps(self, recipe: Recipe, steps, env_vars: dict) -> None:
+    def run_steps(self, recipe: Recipe, steps, env_vars: dict):
         """Execute a list of steps."""
         for s in steps:
-            if self.env.done:
-                return
             if s.kind == "do":
-                self.run_template(recipe, s.text, env_vars)
+                yield from self.run_template(recipe, s.text, env_vars)
             elif s.kind == "for":
-                for item in self.value(recipe, s.over):
+                for item in (yield from self.value(recipe, s.over)):
                     if item != "none":
-                        self.run_steps(recipe, s.body, {**env_vars, "item": item})
-            elif all(self._holds(recipe, name, vals) for name, vals in s.cond):
-                self.run_steps(recipe, s.body, env_vars)
+                        yield from self.run_steps(recipe, s.body, {**env_vars, "item": item})
+            elif (yield from self._all_hold(recipe, s.cond)):
+                yield from self.run_steps(recipe, s.body, env_vars)
 
-    def _holds(self, recipe: Recipe, name: str, vals: tuple) -> bool:
-        v = self.value(recipe, name)
+    def _all_hold(self, recipe: Recipe, cond):
+        for name, vals in cond:
+            if not (yield from self._holds(recipe, name, vals)):
+                return False
+        return True
+
+    def _holds(self, recipe: Recipe, name: str, vals: tuple):
+        v = yield from self.value(recipe, name)
         present = [x for x in (v if isinstance(v, tuple) else (v,)) if x != "none"]
         if vals == ("any",):
             return bool(present)
@@ -233,56 +244,86 @@ class Executor:
             return not present
         return any(x in vals for x in present)
 
-    def run_template(self, recipe: Recipe, text: str, env_vars: dict) -> None:
-        """Fill a template's variables and run it (ADD expands to Pour/Move)."""
-        def fill(m):
+    def run_template(self, recipe: Recipe, text: str, env_vars: dict):
+        """Fill a template's variables, left to right, and run it (ADD expands to Pour/Move)."""
+        parts, last = [], 0
+        for m in _VAR.finditer(text):
             name = m.group(2)
-            value = env_vars[name] if name in env_vars else self.value(recipe, name)
-            return self.holder(value) if m.group(1) else value
-        filled = _VAR.sub(fill, text)
+            value = env_vars[name] if name in env_vars else (yield from self.value(recipe, name))
+            if m.group(1):
+                value = yield from self.holder(value)
+            parts += [text[last:m.start()], value]
+            last = m.end()
+        filled = "".join(parts) + text[last:]
         m = _ADD.match(filled)
         if m:
-            self.add(m.group(1), m.group(2))
+            yield from self.add(m.group(1), m.group(2))
         elif filled and "None" not in filled:
-            self.act(filled)
+            yield from self.act(filled)
 
-    def holder(self, substance: str) -> str:
+    def holder(self, substance: str):
         """A known container holding a substance (finding it first)."""
-        self.find(substance)
-        holders = self._holders(substance)
-        endless = [h for h in holders if substance in self.world.sources.get(h, ())]
+        yield from self.find(substance)
+        holders = self.seen.holders_of(substance)
+        endless = [h for h in holders if substance in self.seen.sources(h)]
         return (endless or holders or ["None"])[0]  # never take it back out of a dish
 
-    def add(self, what: str, vessel: str) -> None:
+    def add(self, what: str, vessel: str):
         """Put an ingredient (substance, object or category) into a vessel."""
-        if not self.find(what) or not self.find(vessel):
+        if not (yield from self.find(what)) or not (yield from self.find(vessel)):
             return
         if what in self.domain.substance:
             liquid = "liquid" in self.domain.substance[what].tags
             verb = "Pour {} from {} into {}" if liquid else "Move {} from {} to {}"
-            self.act(verb.format(what, self.holder(what), vessel))
+            source = yield from self.holder(what)
+            yield from self.act(verb.format(what, source, vessel))
             return
-        eid = what if what in self.world.specs else self._pick(what, vessel)
+        eid = what if self.seen.knows(what) else self._pick(what, vessel)
         if eid is None:
-            sub = next((s for s in _by_category(self.domain).get(what, ()) if self._holders(s)), None)
+            sub = next((s for s in _by_category(self.domain).get(what, ()) if self.seen.holders_of(s)), None)
             if sub:
-                self.add(sub, vessel)
+                yield from self.add(sub, vessel)
             return
         self.taken.add(eid)
-        self.act(f"Move {eid} to {vessel}")
+        yield from self.act(f"Move {eid} to {vessel}")
 
     def _pick(self, category: str, vessel: str):
-        w = self.world
-        for e in sorted(w.known):
-            if e in w.specs and w.specs[e].category == category and e not in self.taken and w.parent.get(e) != vessel:
+        seen = self.seen
+        for e in sorted(seen.known()):
+            if seen.category(e) == category and e not in self.taken and seen.parent(e) != vessel:
                 return e
         return None
 
 
+@dataclass(frozen=True)
+class Feedback:
+    """What a planner learns from one action: success, the user's reply, and what it has now seen."""
+
+    ok: bool
+    reply: str
+    seen: object
+
+
+def feedback(view) -> Feedback:
+    """The feedback on the last action of a `harness.policy.View`."""
+    last = view.history[-1]
+    return Feedback(last.ok, last.reply, view.seen)
+
+
+def drive(env: Env, steps) -> None:
+    """Run a planner's action generator straight against an env, recording nothing: the oracle's
+    private simulations while it plans. Benchmark episodes are run by `harness.episode`."""
+    try:
+        text = next(steps)
+        while True:
+            result = env.step(text)
+            if env.done:
+                return
+            text = steps.send(Feedback(result.ok, result.reply, env.seen()))
+    except StopIteration:
+        return
+
+
 def execute(env: Env, assignment: dict) -> None:
-    """Run a whole plan: each recipe in order, served as it is finished, then Declare Done."""
-    _say_missing(env.domain, env.task)
-    ex = Executor(env, assignment)
-    for recipe in task_recipes(env.domain, env.task, assignment):
-        ex.run_recipe(recipe)
-    ex.act("Declare Done")
+    """Carry out a whole plan straight against an env (see `drive`)."""
+    drive(env, Executor(env.domain, env.task, assignment, env.seen()).steps())

@@ -1,11 +1,14 @@
-"""Scripted agents that plan from the recipes in the spec.
+"""Scripted agents that plan from the recipes in the spec, as `harness.policy.Policy` classes.
 
-- `oracle`: the privileged teacher. It knows the persona's preferences and searches the recipe
-  choices in the simulator (greedy coordinate search) for the plan the verifiers accept best.
+- `oracle`: the privileged teacher. At `start` it reads the persona's preferences and searches the
+  recipe choices in private simulations of the episode (greedy coordinate search) for the plan the
+  verifiers accept best.
 - `never-ask`: the same planner with the recipes' sensible defaults and no questions.
-- `always-ask`: asks the user at every choice point that has a question and follows the answer.
+- `always-ask`: asks the user at every choice point that has a question (as its action; the reply
+  comes back in the view's history) and follows the answers.
 
-All of them explore like a real agent: they `Look for` things before using them.
+All of them explore like a real agent: they `Look for` things before using them, and they read only
+what they have found (`View.seen`). Each emits one action per `act`; `harness.episode` runs the loop.
 """
 
 from __future__ import annotations
@@ -15,17 +18,53 @@ import re
 from ..compiler import ast as A
 from ..compiler.lint import applies_to
 from ..compiler.model import Choice, CompiledDomain, Persona, Task
+from ..harness.policy import Decision, Policy, View
 from ..runtime.env import Env
-from .plans import PLAN, all_recipes, choice_points, defaults, execute, task_recipes
+from .plans import PLAN, Executor, all_recipes, choice_points, defaults, execute, feedback, task_recipes
 from .users import words
 
 AGENTS = ("oracle", "never-ask", "always-ask")
 
 
+class ScriptedPolicy(Policy):
+    """A planner driven one action at a time: `plan(view)` returns a generator that yields action
+    texts and is sent a `plans.Feedback` after each (one generator per running episode)."""
+
+    def __init__(self, domain: CompiledDomain):
+        self.domain = domain
+        self._runs: dict = {}
+
+    def plan(self, view: View):
+        """The action generator of a new episode."""
+        raise NotImplementedError
+
+    def act(self, view: View) -> Decision:
+        """The plan's next action (Declare Done once the plan is exhausted)."""
+        run = self._runs.get(view.episode)
+        try:
+            if run is None or not view.history:
+                run = self._runs[view.episode] = self.plan(view)
+                return Decision(next(run))
+            return Decision(run.send(feedback(view)))
+        except StopIteration:
+            self._runs.pop(view.episode, None)
+            return Decision("Declare Done")
+
+    def end(self, episode: str) -> None:
+        """Forget a finished episode's plan."""
+        self._runs.pop(episode, None)
+
+
 # ------------------------------------------------------------------ never-ask
-def run_never_ask(env: Env) -> None:
+class NeverAsk(ScriptedPolicy):
     """Defaults everywhere, no questions."""
-    execute(env, defaults(env.domain, all_recipes(env.domain, env.task)))
+
+    name = "never-ask"
+
+    def plan(self, view: View):
+        """Carry out the recipes' defaults."""
+        task = self.domain.task[view.task]
+        return Executor(self.domain, task, defaults(self.domain, all_recipes(self.domain, task)), view.seen).steps()
 
 
 # ------------------------------------------------------------------ always-ask
@@ -77,18 +116,29 @@ def interpret(domain: CompiledDomain, choice: Choice, answer: str):
     return choice.default[0]
 
 
-def run_always_ask(env: Env) -> None:
-    """Ask at every choice point (planning choices first, then each recipe's), then act."""
-    d = env.domain
-    assignment: dict = {}
-    for c in d.planning:
-        if c.ask:
-            assignment[f"{PLAN}.{c.id}"] = interpret(d, c, env.step(f'Ask "{c.ask}"').reply)
-    for r in task_recipes(d, env.task, assignment):
-        for c in r.choices:
-            if c.ask and not env.done:
-                assignment[f"{r.id}.{c.id}"] = interpret(d, c, env.step(f'Ask "{c.ask}"').reply)
-    execute(env, {**defaults(d, all_recipes(d, env.task)), **assignment})
+class AlwaysAsk(ScriptedPolicy):
+    """Ask at every choice point (planning choices first, then each recipe's), then act on the answers."""
+
+    name = "always-ask"
+
+    def plan(self, view: View):
+        """Questions first, then the plan the answers choose."""
+        return self._steps(self.domain.task[view.task], view.seen)
+
+    def _steps(self, task: Task, seen):
+        d = self.domain
+        assignment: dict = {}
+        for c in d.planning:
+            if c.ask:
+                fb = yield f'Ask "{c.ask}"'
+                seen, assignment[f"{PLAN}.{c.id}"] = fb.seen, interpret(d, c, fb.reply)
+        for r in task_recipes(d, task, assignment):
+            for c in r.choices:
+                if c.ask:
+                    fb = yield f'Ask "{c.ask}"'
+                    seen, assignment[f"{r.id}.{c.id}"] = fb.seen, interpret(d, c, fb.reply)
+        plan = {**defaults(d, all_recipes(d, task)), **assignment}
+        yield from Executor(d, task, plan, seen).steps()
 
 
 # ------------------------------------------------------------------ oracle
@@ -265,10 +315,44 @@ def swaps(domain: CompiledDomain, choice: Choice, current: tuple, names: set):
                 yield tuple(new if x == old else x for x in current)
 
 
-def run_oracle(env: Env) -> None:
-    """Search the best plan for the persona, then carry it out (no questions)."""
-    oracle = Oracle(env.domain, env.task, env.persona, env.scene.seed, env.scene.full)
-    execute(env, oracle.search())
+class OraclePolicy(ScriptedPolicy):
+    """The privileged teacher: at `start` it searches the best plan for the persona in private
+    simulations of the episode's scene, then carries it out (no questions)."""
+
+    name = "oracle"
+
+    def __init__(self, domain: CompiledDomain):
+        super().__init__(domain)
+        self._plans: dict = {}
+
+    def start(self, episode: str, env) -> None:
+        """Search the plan (privileged: reads the persona and simulates the scene)."""
+        self._runs.pop(episode, None)
+        oracle = Oracle(env.domain, env.task, env.persona, env.scene.seed, env.scene.full)
+        self._plans[episode] = oracle.search()
+
+    def plan(self, view: View):
+        """Carry out the plan found at `start`."""
+        task = self.domain.task[view.task]
+        return Executor(self.domain, task, self._plans[view.episode], view.seen).steps()
+
+    def end(self, episode: str) -> None:
+        """Forget a finished episode's plan."""
+        super().end(episode)
+        self._plans.pop(episode, None)
 
 
-RUNNERS = {"oracle": run_oracle, "never-ask": run_never_ask, "always-ask": run_always_ask}
+POLICIES = {"oracle": OraclePolicy, "never-ask": NeverAsk, "always-ask": AlwaysAsk}
+
+
+def make_policy(agent: str, domain: CompiledDomain) -> ScriptedPolicy:
+    """The scripted policy named `agent` (one of AGENTS) for a domain."""
+    return POLICIES[agent](domain)
+
+
+def play(agent: str, env: Env, episode: str = "episode"):
+    """Run one whole episode of a scripted agent on `env` (reset first) with the harness's loop;
+    returns the `harness.episode.Episode` (its steps; `env` holds the final world)."""
+    from ..harness.episode import run_episode
+
+    return run_episode(make_policy(agent, env.domain), env, episode)

@@ -24,7 +24,7 @@ from .model import CompiledDomain
 __all__ = ["CompiledDomain", "Diagnostic", "SpecError", "compile_cached", "compile_spec", "load_domain",
            "spec_hash"]
 
-COMPILER_VERSION = "4"  # bump when the compiled form or its cache format changes
+COMPILER_VERSION = "6"  # bump when the compiled form or its cache format changes
 
 
 def _display(path: Path) -> str:

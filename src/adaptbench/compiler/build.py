@@ -265,9 +265,9 @@ def add_engine(draft: Draft, doc: LoadedDoc) -> None:
     draft.engine = Engine(d["dining_place"], tuple(d["kinds"]["food"]), tuple(d["kinds"]["drink"]),
                           tuple(tuple(p) for p in d["states"]), tuple(d["action_verbs"]),
                           tuple(d["swap_families"]), tuple(d["location_words"]), tuple(d["result_tags"]),
-                          tuple(d["search_ignores"]))
+                          tuple(d["search_ignores"]), tuple(d["cold_places"]), d["water"])
     for key in ("dining_place", "states", "action_verbs", "swap_families", "location_words", "result_tags",
-                "search_ignores"):
+                "search_ignores", "cold_places", "water"):
         draft.where[("engine", key)] = draft.at(doc, (key,))
         for j in range(len(d[key]) if isinstance(d[key], list) else 0):
             draft.where[("engine", key, j)] = draft.at(doc, (key, j))

@@ -13,6 +13,7 @@ from .build import Draft
 from .diagnostics import did_you_mean
 from .engine import check_effect_values, check_engine, check_persona_numbers, check_splits
 from .model import Where
+from .predicates import QUANTIFIERS, ops_for
 from .recipes import check_recipe_steps
 
 SLOT_TYPES = ("entity", "content", "thing", "query", "question", "result", "verb")
@@ -32,10 +33,9 @@ EFFECTS = {
     "done": (set(), set()),
 }
 
-PRE_OPS = {"is", "contains", "on", "within", "holds"}
-DISH_OPS = {"has", "has_no", "has_only", "is", "made_in", "made_with", "topped_with", "made_by", "cooked_in",
-            "adds_before", "count"}
-PREF_OPS = DISH_OPS | {"served_at", "served_in", "served_before", "available", "uses", "task_has", "made"}
+PRE_OPS = ops_for("precondition")  # each predicate's contexts are declared once, in predicates.py
+DISH_OPS = ops_for("dish")
+PREF_OPS = ops_for("preference")
 DISH_SUBJECTS = {"meal", "sides"}
 _SLOT_RE = re.compile(r"\{(\w+)\}")
 
@@ -247,7 +247,7 @@ def _check_rule(draft: Draft, rule: A.Rule, context: str, names: Names, slots: d
 
 
 def _check_each(node: A.Each, context: str, names: Names, scoped: bool) -> list:
-    if context != "preference":
+    if context not in QUANTIFIERS["each"].contexts:
         return [(node, "D108", f"'each' cannot be used in a {context} rule")]
     out = list(_check_subject(node, node.subject, context, names, {}, scoped))
     if node.cls is not None:

@@ -34,6 +34,7 @@ def check_engine(draft: Draft) -> None:
             if tag not in draft.tags:
                 draft.error(_where(draft, ("engine", key, j)), "D502",
                             f"{key}: '{tag}' is not a declared tag{did_you_mean(tag, draft.tags)}")
+    _check_categories(draft, eng)
     classes = set(draft.tags) | set(draft.categories)
     for j, fam in enumerate(eng.swap_families):
         if fam not in classes:
@@ -43,6 +44,16 @@ def check_engine(draft: Draft) -> None:
                     for j, k in enumerate(ks)], "kind")
     _unique(draft, [(s, ("engine", "states", j)) for j, pair in enumerate(eng.states) for s in pair], "state")
     _check_kinds(draft, eng)
+
+
+def _check_categories(draft: Draft, eng) -> None:
+    """`cold_places` and `water` name declared categories."""
+    named = [(cat, ("engine", "cold_places", j), "cold_places") for j, cat in enumerate(eng.cold_places)]
+    named.append((eng.water, ("engine", "water"), "water"))
+    for cat, key, what in named:
+        if cat not in draft.categories:
+            draft.error(_where(draft, key), "D502",
+                        f"{what}: '{cat}' is not a declared category{did_you_mean(cat, draft.categories)}")
 
 
 def _check_kinds(draft: Draft, eng) -> None:

@@ -205,6 +205,8 @@ class Engine:
     location_words: tuple  # storage nouns that make a question one about where things are
     result_tags: tuple  # the tags of what a `to get` step makes (edible, food)
     search_ignores: tuple  # tags too general to find things by with `Look for` (container, edible ...)
+    cold_places: tuple = ("fridge",)  # furniture categories that chill what is put in them
+    water: str = "water"  # the category of water (a cooking medium for poached and boiled eggs)
 
     @property
     def kinds(self) -> tuple:

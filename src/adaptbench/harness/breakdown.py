@@ -16,12 +16,12 @@ BY = ("task", "persona", "preference")
 def _episode_rows(records: list, by: str) -> list:
     groups = defaultdict(list)
     for r in records:
-        groups[(r["agent"], str(r.get(by)))].append(r)
+        groups[(r.agent, str(getattr(r, by)))].append(r)
     rows = []
     for (agent, group), recs in sorted(groups.items(), key=lambda kv: (_order(kv[0][0]), kv[0][1])):
-        rates = [r["satisfaction_rate"] for r in recs if r.get("satisfaction_rate") is not None]
+        rates = [r.satisfaction_rate for r in recs if r.satisfaction_rate is not None]
         rows.append({"agent": agent, by: group, "episodes": len(recs), "rate": mean_se(rates),
-                     "questions": mean_se([r["questions"] for r in recs]),
+                     "questions": mean_se([r.questions for r in recs]),
                      "no_applicable": len(recs) - len(rates)})
     return rows
 
@@ -29,9 +29,8 @@ def _episode_rows(records: list, by: str) -> list:
 def _preference_rows(records: list) -> list:
     counts = defaultdict(lambda: {"satisfied": 0, "violated": 0, "inapplicable": 0})
     for r in records:
-        for v in r.get("preferences") or ():
-            if isinstance(v, dict) and v.get("verdict") in ("satisfied", "violated", "inapplicable"):
-                counts[(r["agent"], f"{r['persona']}.{v.get('id')}")][v["verdict"]] += 1
+        for v in r.preferences:  # only well-formed verdicts are read into a record
+            counts[(r.agent, f"{r.persona}.{v.get('id')}")][v["verdict"]] += 1
     rows = []
     for (agent, pref), c in sorted(counts.items(), key=lambda kv: (_order(kv[0][0]), kv[0][1])):
         applicable = c["satisfied"] + c["violated"]

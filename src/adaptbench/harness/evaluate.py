@@ -28,31 +28,31 @@ def mean_se(values: list) -> tuple:
     return m, math.sqrt(var / n)
 
 
-def split_of(record: dict, unseen: dict) -> list:
-    """The columns a record counts in: a record with a `split` is seen or unseen in that split (`unseen`:
-    split id -> held-out persona ids, the domain's `unseen`); an untrained agent's record counts in both
-    columns (every persona is seen in some splits and unseen in one)."""
-    if "split" in record:
-        held_out = record["persona"] in unseen[int(record["split"])]
+def split_of(record, unseen: dict) -> list:
+    """The columns an `EpisodeRecord` counts in: a record with a `split` is seen or unseen in that split
+    (`unseen`: split id -> held-out persona ids, the domain's `unseen`); an untrained agent's record
+    counts in both columns (every persona is seen in some splits and unseen in one)."""
+    if record.split is not None:
+        held_out = record.persona in unseen[record.split]
         return ["unseen" if held_out else "seen"]
     return ["seen", "unseen"]
 
 
 def table(records: list, unseen: dict | None = None) -> list:
-    """Rows: agent, n, rate seen/unseen (mean, se), questions seen/unseen (mean, se). `unseen` (the
-    domain's splits) is needed only when some record has a `split`."""
-    agents = sorted({r["agent"] for r in records}, key=lambda a: _order(a))
+    """Rows of `EpisodeRecord`s: agent, n, rate seen/unseen (mean, se), questions seen/unseen (mean, se).
+    `unseen` (the domain's splits) is needed only when some record has a `split`."""
+    agents = sorted({r.agent for r in records}, key=lambda a: _order(a))
     rows = []
     for a in agents:
         cols = {"seen": ([], []), "unseen": ([], [])}
         for r in records:
-            if r["agent"] != a:
+            if r.agent != a:
                 continue
             for col in split_of(r, unseen or {}):
-                if r["satisfaction_rate"] is not None:
-                    cols[col][0].append(r["satisfaction_rate"])
-                cols[col][1].append(r["questions"])
-        n = sum(1 for r in records if r["agent"] == a)
+                if r.satisfaction_rate is not None:
+                    cols[col][0].append(r.satisfaction_rate)
+                cols[col][1].append(r.questions)
+        n = sum(1 for r in records if r.agent == a)
         rows.append({"agent": a, "episodes": n,
                      "rate_seen": mean_se(cols["seen"][0]), "rate_unseen": mean_se(cols["unseen"][0]),
                      "questions_seen": mean_se(cols["seen"][1]), "questions_unseen": mean_se(cols["unseen"][1])})

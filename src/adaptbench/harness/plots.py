@@ -50,13 +50,13 @@ def _bars(ax, rows: list) -> None:
 
 def persona_matrix(records: list, agents: list) -> tuple[list, list]:
     """(personas, rows of mean satisfaction per agent, None where no preference applied)."""
-    personas = sorted({r["persona"] for r in records})
+    personas = sorted({r.persona for r in records})
     grid = []
     for p in personas:
         row = []
         for a in agents:
-            rates = [r["satisfaction_rate"] for r in records
-                     if r["persona"] == p and r["agent"] == a and r.get("satisfaction_rate") is not None]
+            rates = [r.satisfaction_rate for r in records
+                     if r.persona == p and r.agent == a and r.satisfaction_rate is not None]
             row.append(mean_se(rates)[0])
         grid.append(row)
     return personas, grid
@@ -79,7 +79,7 @@ def draw(rows: list, records: list, path: Path) -> None:
     """Write the per-agent bars and the persona heat map to `path` (type from its suffix)."""
     plt = _pyplot()
     agents = [r["agent"] for r in rows]
-    n_personas = len({r["persona"] for r in records})
+    n_personas = len({r.persona for r in records})
     fig, (top, bottom) = plt.subplots(2, 1, figsize=(max(6, 1.6 * len(agents) + 3), 4 + 0.32 * n_personas + 2),
                                       gridspec_kw={"height_ratios": [4, max(2, 0.32 * n_personas)]})
     _bars(top, rows)

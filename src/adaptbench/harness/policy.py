@@ -2,8 +2,9 @@
 
 A policy is given a `View` of one episode — the task, the house layout, the history of its actions
 with the observations and the user's replies, and what it may name (`observed`) — and returns its next
-action as text. The harness (`harness.episode`) owns the loop: it steps the simulator, asks the user,
-records every step and hands the next `View` back. Batched policies (language models) implement
+action as text. The harness (`harness.episode`) owns the loop: it calls `start` (privileged policies
+may plan there), then `act` until the episode is over, then `end`; it steps the simulator (which asks
+the user), records every step and hands the next `View` back. Batched policies (language models) implement
 `act_batch` to choose for many episodes at once; `act_batch` defaults to calling `act` row by row.
 
     class Echo(Policy):
@@ -36,7 +37,10 @@ class View:
 
     `observed` is the grammar's view of the state (`grammars.emit.Observed`): the entity ids the agent
     may name and the content names it has seen; a constrained decoder builds the state's grammar from
-    it. `made` lists the dishes made so far, for the planner's progress line."""
+    it. `made` lists the dishes made so far, for the planner's progress line ("scrambled_eggs in pan_0
+    from egg_0, butter"). `seen` is the known part of the world (`runtime.seen.Seen`: found entities,
+    where they are, what they hold), valid for this step only: what scripted planners read instead of
+    parsing the observations."""
 
     episode: str
     task: str
@@ -47,6 +51,7 @@ class View:
     made: tuple = ()
     step: int = 0
     max_steps: int = 50
+    seen: object = None
 
 
 @dataclass(frozen=True)
@@ -74,6 +79,10 @@ class Policy(ABC):
         """Called once when an episode starts. Privileged policies (the oracle, the teacher) may plan
         from `env` here; every other policy must ignore it."""
         return None  # noqa: B027 - most policies need no set-up
+
+    def end(self, episode: str) -> None:
+        """Called once when an episode has ended (Declare Done or the step limit): forget its state."""
+        return None  # noqa: B027 - most policies keep no state
 
     @abstractmethod
     def act(self, view: View) -> Decision:

@@ -1,8 +1,10 @@
 """Reading results files for evaluation: every line accounted for.
 
+Each line is read through the typed record schema (`record.EpisodeRecord`, any known version).
 Lines that are not usable episodes are skipped and counted by reason (torn or not JSON, not UTF-8,
-not an episode record, bad values, an episode that ended in an error, a duplicate of an episode
-already read), and the spec hashes of each file are collected so evaluation can refuse to mix specs.
+not an episode record, bad values, a newer record version, an episode that ended in an error, a
+duplicate of an episode already read), and the spec hashes of each file are collected so evaluation
+can refuse to mix specs. Records written before the schema was versioned are read and counted.
 """
 
 from __future__ import annotations
@@ -11,6 +13,7 @@ from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from .record import EpisodeRecord, RecordError
 from .results import episode_key, iter_lines, parse_line
 
 
@@ -26,9 +29,10 @@ class RunsError(Exception):
 class Runs:
     """Usable episode records, what was skipped and why, and the spec hashes found in each file."""
 
-    records: list = field(default_factory=list)
+    records: list = field(default_factory=list)  # EpisodeRecord, in file order
     skipped: Counter = field(default_factory=Counter)
     hashes: dict = field(default_factory=dict)  # file -> Counter of spec hashes
+    unversioned: int = 0  # records written before records carried a version (read as version 0)
 
     def skipped_text(self) -> str:
         """'skipped 3 line(s): 2 duplicate episode, 1 not JSON (torn line)' or ''."""
@@ -38,43 +42,28 @@ class Runs:
         return f"skipped {sum(self.skipped.values())} line(s): {parts}"
 
 
-def _bad_values(rec: dict, splits) -> str | None:
-    if "satisfaction_rate" not in rec or "questions" not in rec:
-        return "not an episode record"
-    rate, q = rec["satisfaction_rate"], rec["questions"]
-    if not isinstance(rec.get("agent"), str) or not isinstance(rec.get("persona"), str):
-        return "bad agent or persona"
-    if rate is not None and (isinstance(rate, bool) or not isinstance(rate, int | float) or not 0 <= rate <= 1):
-        return "bad satisfaction_rate"
-    if isinstance(q, bool) or not isinstance(q, int | float) or q < 0:
-        return "bad questions"
-    if "split" in rec and not _known_split(rec["split"], splits):
-        return "unknown split"
-    return None
-
-
-def _known_split(split, splits) -> bool:
-    if isinstance(split, bool) or not isinstance(split, int | str):
-        return False
-    try:
-        return int(split) in (splits() if callable(splits) else splits or {})
-    except ValueError:
-        return False
-
-
-def _classify(rec, why, seen: set, splits) -> str | None:
+def _classify(rec, why, seen: set, splits):
+    """(record, None) for a usable episode, else (None, the reason it is skipped)."""
     if rec is None:
-        return {"not JSON": "not JSON (torn line)"}.get(why, why)
-    if "error" in rec:
-        return "episode ended in an error"
-    bad = _bad_values(rec, splits)
-    if bad:
-        return bad
+        return None, {"not JSON": "not JSON (torn line)"}.get(why, why)
+    try:
+        record = EpisodeRecord.from_dict(rec)
+    except RecordError as exc:
+        return None, str(exc)
+    if record.error is not None:
+        return None, "episode ended in an error"
+    if record.split is not None and not _known_split(record.split, splits):
+        return None, "unknown split"
     key = episode_key(rec)
     if key in seen:
-        return "duplicate episode"
+        return None, "duplicate episode"
     seen.add(key)
-    return None
+    return record, None
+
+
+def _known_split(split: int, splits) -> bool:
+    """Whether a split id is one of the domain's (`splits`: a mapping, or a callable returning one)."""
+    return split in (splits() if callable(splits) else splits or {})
 
 
 def _check_file(path: Path) -> None:
@@ -94,13 +83,13 @@ def load_runs(paths, splits=None) -> Runs:
         hashes = runs.hashes.setdefault(str(p), Counter())
         try:
             for _, line in iter_lines(p):
-                rec, why = parse_line(line)
-                reason = _classify(rec, why, seen, splits)
+                record, reason = _classify(*parse_line(line), seen, splits)
                 if reason:
                     runs.skipped[reason] += 1
                     continue
-                hashes[rec.get("spec_hash")] += 1
-                runs.records.append(rec)
+                hashes[record.spec_hash] += 1
+                runs.unversioned += record.version == 0
+                runs.records.append(record)
             tail = p.read_bytes()[-1:]
         except OSError as exc:
             raise RunsError(f"cannot read {p} ({exc.strerror})", 2) from None

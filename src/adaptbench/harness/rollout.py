@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..progress import Progress
+from .record import EpisodeRecord
 from .results import ResultsFile, episode_key
 from .workers import Interrupted, run_pool
 
@@ -93,38 +94,51 @@ def done_keys(path: Path, spec_hash: str | None = None) -> set:
     return keys
 
 
-_DOMAIN = {}
+_DOMAIN: dict = {}  # the domain this process runs, with the spec it was loaded from and its policies
 
 
-def _init(spec: str) -> None:
+def _init(spec: str, fresh: bool = False) -> None:
+    """Load the domain of `spec` in this process, unless it is the one already loaded (`fresh`: load
+    it again, as each rollout does: the files may have changed since)."""
     from ..compiler import load_domain
 
-    if "d" not in _DOMAIN or _DOMAIN.get("spec") != spec:
-        _DOMAIN["d"], _DOMAIN["spec"] = load_domain(spec), spec
+    if fresh or _DOMAIN.get("spec") != spec:
+        _DOMAIN.clear()
+        _DOMAIN.update(d=load_domain(spec), spec=spec, policies={})
 
 
-def _header(job: Job, spec_hash: str) -> dict:
+def _policy(agent: str):
+    from ..agents.scripted import make_policy
+
+    policies = _DOMAIN["policies"]
+    if agent not in policies:
+        policies[agent] = make_policy(agent, _DOMAIN["d"])
+    return policies[agent]
+
+
+def _header(job: Job, spec_hash: str | None) -> dict:
     return {"agent": job.agent, "agent_config": config_of(job.agent), "persona": job.persona,
             "task": job.task, "seed": job.seed, "spec_hash": spec_hash}
 
 
 def run_episode(job: Job, spec: str = "spec") -> dict:
-    """Run one episode with the offline user; return its record."""
-    from ..agents.scripted import RUNNERS
+    """Run one episode with the offline user through the harness's loop; return its record (as a dict)."""
     from ..agents.users import OfflineUser
     from ..runtime.env import Env
+    from .episode import run_episode as run
 
     _init(spec)
     d = _DOMAIN["d"]
-    persona, task = d.persona[job.persona], d.task[job.task]
-    env = Env(d, task=job.task, persona=job.persona, seed=job.seed, user=OfflineUser(d, persona, task))
-    env.reset()
-    RUNNERS[job.agent](env)
+    persona = d.persona[job.persona]
+    env = Env(d, task=job.task, persona=job.persona, seed=job.seed, user=OfflineUser(d, persona, d.task[job.task]))
+    ep = run(_policy(job.agent), env, f"{job.agent}/{job.persona}/{job.task}/{job.seed}")
     ev = env.evaluate()
-    steps = [{"action": e.text, "ok": e.ok, "observation": e.observation, "reply": e.reply} for e in env.world.trace]
-    record = {**_header(job, d.spec_hash), "scene": env.scene.scene_id, "steps": steps, "n_steps": len(steps),
-              "satisfied": ev.satisfied, "violated": ev.violated, **ev.as_dict()}
-    return {**record, "notes": notes} if (notes := _notes(d, task)) else record
+    record = EpisodeRecord(**_header(job, d.spec_hash), scene=env.scene.scene_id, steps=tuple(ep.steps),
+                           satisfied=ev.satisfied, violated=ev.violated,
+                           preferences=tuple(ev.as_dict()["preferences"]),
+                           satisfaction_rate=ev.satisfaction_rate, questions=ev.questions,
+                           completed=tuple(ev.completed), notes=tuple(_notes(d, env.task)))
+    return record.to_dict()
 
 
 def _notes(domain, task) -> list:
@@ -139,14 +153,15 @@ def safe_episode(job: Job, spec: str = "spec") -> dict:
     try:
         return run_episode(job, spec)
     except Exception as exc:  # noqa: BLE001 - one episode's bug must not end the run
-        return {**_header(job, _DOMAIN["d"].spec_hash if "d" in _DOMAIN else None),
-                "error": f"{type(exc).__name__}: {exc}", "traceback": traceback.format_exc()}
+        spec_hash = _DOMAIN["d"].spec_hash if _DOMAIN.get("spec") == spec else None
+        return EpisodeRecord(**_header(job, spec_hash), error=f"{type(exc).__name__}: {exc}",
+                             traceback=traceback.format_exc()).to_dict()
 
 
 def rollout(jobs: list, out: Path, workers: int = 1, spec: str = "spec", progress: bool = True) -> RolloutResult:
     """Run the jobs not yet in `out`, appending each result as it finishes. Raises ResultsError (bad
     --out, locked, disk full) and Interrupted (Ctrl-C, SIGTERM) with the finished episodes kept."""
-    _init(spec)
+    _init(spec, fresh=True)  # workers are forked after this and keep this domain
     spec_hash = _DOMAIN["d"].spec_hash
     jobs = list(dict.fromkeys(jobs))
     res = RolloutResult()

@@ -13,7 +13,7 @@ _DOMAINS: dict = {}
 
 def _one(args) -> list:
     spec, digest, persona, task, seed = args
-    from ..agents.scripted import run_oracle
+    from ..agents.scripted import play
     from ..compiler import load_domain
     from ..runtime.env import Env
 
@@ -22,7 +22,7 @@ def _one(args) -> list:
     d = _DOMAINS[(spec, digest)]
     env = Env(d, task=task, persona=persona, seed=seed)
     env.reset()
-    run_oracle(env)
+    play("oracle", env)
     return [(persona, task, seed, v.id, v.reason) for v in env.evaluate().verdicts if v.verdict == "violated"]
 
 

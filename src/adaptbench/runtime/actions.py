@@ -9,6 +9,7 @@ from dataclasses import dataclass
 
 from ..compiler import ast as A
 from ..compiler.model import ActionSpec, CompiledDomain
+from ..compiler.predicates import evaluators
 from .classes import entity_matcher, node_matcher
 from .world import Node, World
 
@@ -264,4 +265,5 @@ def _p_holds(node: A.Pred, types: dict):
     return check
 
 
-_PRED = {"is": _p_is, "contains": _p_contains, "on": _p_on, "within": _p_within, "holds": _p_holds}
+_PRED = evaluators("precondition", {"is": _p_is, "contains": _p_contains, "on": _p_on, "within": _p_within,
+                                    "holds": _p_holds})

@@ -9,6 +9,7 @@ Modifiers `heated`/`chopped` need the path an ingredient took; node matchers the
 from __future__ import annotations
 
 from ..compiler import ast as A
+from .tables import domain_tables
 
 
 def node_matcher(cls):
@@ -33,15 +34,8 @@ def node_matcher(cls):
     raise TypeError(cls)
 
 
-_ROOMS: dict = {}
-
-
 def _rooms(domain) -> frozenset:
-    hit = _ROOMS.get(id(domain))
-    if hit is None or hit[0] is not domain:
-        hit = (domain, frozenset(e.id for e in domain.entities if e.kind == "room"))
-        _ROOMS[id(domain)] = hit
-    return hit[1]
+    return domain_tables(domain).rooms
 
 
 def entity_matcher(cls):

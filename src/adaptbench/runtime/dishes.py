@@ -40,6 +40,7 @@ class Dish:
     vessels: set = field(default_factory=set)
     completes: set = field(default_factory=set)
     as_is: bool = False  # a condiment / milk container served as it is (only ever a side)
+    water: str = "water"  # the domain's water category (engine vocabulary)
 
 
 def dining_place(world: World, eid: str) -> str | None:
@@ -108,7 +109,8 @@ def _dish(world: World, key: str, container: str | None, place: str, tops: list)
     tops = sorted(tops, key=lambda t: (t.arrived, t.nid))
     makers = [t for t in tops if _is_maker(world, t)]
     base = makers[-1] if makers else tops[0]
-    dish = Dish(key, container, place, max(_reached(world, key, place), base.arrived), tops=tops)
+    dish = Dish(key, container, place, max(_reached(world, key, place), base.arrived), tops=tops,
+                water=world.domain.engine.water)
     for t in tops:
         leaves = _leaves(dish, t)
         heated_here = any(h >= t.arrived for h in t.heated)
@@ -137,7 +139,7 @@ def _visit(dish: Dish, node: Node, heated: bool, cut: bool, out: list) -> None:
         dish.leaves.append((node, heated, cut))
         return
     dish.derived.append(node)
-    medium = _cooking_water(node)
+    medium = _cooking_water(node, dish.water)
     for i in node.inputs:
         if i in medium:
             dish.medium.append((i, True, False))
@@ -146,11 +148,11 @@ def _visit(dish: Dish, node: Node, heated: bool, cut: bool, out: list) -> None:
         _visit(dish, i, heated, cut, out)
 
 
-def _cooking_water(node: Node) -> tuple:
+def _cooking_water(node: Node, category: str) -> tuple:
     """Water that only poached or boiled eggs in this heated step (not water made into the food)."""
     if not node.heated:
         return ()
-    water = tuple(i for i in node.inputs if not i.inputs and i.category == "water")
+    water = tuple(i for i in node.inputs if not i.inputs and i.category == category)
     if water and any(_has_egg(i) for i in node.inputs if i not in water):
         return water
     return ()

@@ -9,6 +9,7 @@ from functools import lru_cache
 from ..compiler.model import EntitySpec
 from .actions import ActionFailed, Ref
 from .observe import found
+from .tables import domain_tables
 from .world import World
 
 
@@ -61,7 +62,6 @@ def _query_words(query: str) -> frozenset:
     return _stems(key) | (frozenset(s for w in words for s in _stems(w)) if len(words) == 1 else frozenset())
 
 
-_INDEX: dict = {}
 
 
 def _static_keys(spec, domain) -> frozenset:
@@ -80,18 +80,18 @@ def _static_keys(spec, domain) -> frozenset:
 
 
 def _index(domain) -> tuple:
-    """(entity -> keys, key -> catalogue movables) for a domain, built once."""
-    index = _INDEX.get(id(domain))
-    if index is None or index[0] is not domain:
+    """(domain, entity -> keys, key -> catalogue entities), built once into the domain's tables."""
+    tables = domain_tables(domain)
+    if not tables.search_keys:
         keys = {e.id: _static_keys(e, domain) for e in domain.entities}
         inverted: dict = {}
         for e in domain.entities:
             if e.kind != "room":  # appliances and furniture too: `Look for kettle`
                 for k in keys[e.id]:
                     inverted.setdefault(k, []).append(e.id)
-        index = (domain, keys, inverted)
-        _INDEX[id(domain)] = index
-    return index
+        tables.search_index.update(inverted)
+        tables.search_keys.update(keys)
+    return domain, tables.search_keys, tables.search_index
 
 
 def _search_keys(world: World, eid: str) -> frozenset:
@@ -200,23 +200,18 @@ def _heat_entity(world: World, eid: str) -> None:
 
 def _in_water(world: World, holder: str | None) -> bool:
     """Whether `holder` holds water (an object in it sits in water)."""
-    return holder is not None and any(n.category == "water" for n in world.contents.get(holder, ()))
+    water = world.domain.engine.water
+    return holder is not None and any(n.category == water for n in world.contents.get(holder, ()))
 
 
-# Where a thing put in is chilled (issue 6, item 5: a drink cooled in the fridge is not hot). The
-# furniture categories are engine vocabulary until spec/ can name them.
-_COLD = frozenset(("fridge", "freezer"))
-
-
-_COLD_IDS: dict = {}  # id(domain) -> (domain, the catalogue ids of cold furniture)
+def _cold_ids(domain) -> frozenset:
+    """The catalogue ids of cold furniture (kept with the domain)."""
+    cold = frozenset(domain.engine.cold_places)
+    return frozenset(e.id for e in domain.entities if e.category in cold)
 
 
 def _is_cold(world: World, target: str) -> bool:
-    domain = world.domain
-    hit = _COLD_IDS.get(id(domain))
-    if hit is None or hit[0] is not domain:
-        hit = _COLD_IDS[id(domain)] = (domain, frozenset(e.id for e in domain.entities if e.category in _COLD))
-    cold = hit[1]
+    cold = world.domain.derived("effects.cold_ids", _cold_ids)
     return bool(cold) and (target in cold or any(a in cold for a in world.ancestors(target)))
 
 

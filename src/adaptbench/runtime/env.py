@@ -106,6 +106,12 @@ class Env:
 
         return Observed(frozenset(self.world.known), frozenset(self.world.known_contents))
 
+    def seen(self):
+        """The known part of the world, read-only (`runtime.seen.Seen`): what a scripted agent plans from."""
+        from .seen import Seen
+
+        return Seen(self.world)
+
     def evaluate(self):
         """Verdicts for the persona's preferences on the episode so far."""
         from .verify import evaluate

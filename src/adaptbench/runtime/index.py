@@ -1,6 +1,7 @@
-"""The runtime's per-domain tables, derived once per `CompiledDomain` and passed explicitly: the
+"""The runtime's per-domain index, derived once per `CompiledDomain` and passed explicitly: the
 grammar index, the action parser (structural grammar, cached by text), actions by id and their
-compiled preconditions.
+compiled preconditions, and the domain's light tables (`runtime.tables`: rooms, search keys, scenes,
+world templates, compiled rules — the bounded caches).
 
     index = runtime_index(domain)        # built on first use, kept with the domain
     env = Env(domain, "eggs", index=index)
@@ -14,6 +15,7 @@ from ..compiler.model import CompiledDomain
 from ..grammars.index import GrammarIndex, build_index
 from ..grammars.parser import ActionParser
 from .actions import compile_check
+from .tables import DomainTables, domain_tables
 
 
 @dataclass(frozen=True, eq=False)
@@ -24,6 +26,7 @@ class RuntimeIndex:
     grammar: GrammarIndex
     parser: ActionParser
     checks: dict  # action id -> ((check, failure message), ...)
+    tables: DomainTables  # the light tables and bounded caches (rooms, search, scenes, compiled rules)
 
 
 def build_runtime_index(domain: CompiledDomain) -> RuntimeIndex:
@@ -31,7 +34,7 @@ def build_runtime_index(domain: CompiledDomain) -> RuntimeIndex:
     grammar = domain.derived("grammars.index", build_index)
     checks = {a.id: tuple((compile_check(p.check, dict(a.slots)), p.fail) for p in a.preconditions)
               for a in domain.actions}
-    return RuntimeIndex(domain, grammar, ActionParser(grammar), checks)
+    return RuntimeIndex(domain, grammar, ActionParser(grammar), checks, domain_tables(domain))
 
 
 def runtime_index(domain: CompiledDomain) -> RuntimeIndex:

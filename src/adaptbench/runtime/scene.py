@@ -14,6 +14,7 @@ import json
 from dataclasses import dataclass
 
 from ..compiler.model import CompiledDomain
+from .tables import domain_tables
 
 KEEP_PROBABILITY = 0.7
 
@@ -38,19 +39,10 @@ class Scene:
                             for e, loc in self.location]}
 
 
-_SCENES: dict = {}
-
-
 def sample_scene(domain: CompiledDomain, seed: int | None = 0, full: bool = False) -> Scene:
-    """Sample a scene reproducibly from `seed` (or include everything when `full`); memoised."""
-    key = (id(domain), seed, full)
-    hit = _SCENES.get(key)
-    if hit is None or hit[0] is not domain:
-        if len(_SCENES) > 4096:
-            _SCENES.clear()
-        hit = (domain, _sample(domain, seed, full))
-        _SCENES[key] = hit
-    return hit[1]
+    """Sample a scene reproducibly from `seed` (or include everything when `full`); memoised in the
+    domain's tables (an LRU)."""
+    return domain_tables(domain).scenes.get_or_build((seed, full), lambda: _sample(domain, seed, full))
 
 
 def _sample(domain: CompiledDomain, seed: int | None, full: bool) -> Scene:

@@ -44,10 +44,10 @@ def _applied(path: tuple, verbs: frozenset, heat: int, after: bool) -> bool:
     return any(n.verb in verbs and (n.created >= heat if after else n.created < heat) for n in path[1:])
 
 
-def _in_water(path: tuple) -> bool:
+def _in_water(path: tuple, water: str) -> bool:
     """Whether a step that heated it had water as a direct input, or it was heated whole in water."""
     return any(n.wet for n in path) or \
-        any(n.heated and any(not i.inputs and i.category == "water" for i in n.inputs) for n in path[1:])
+        any(n.heated and any(not i.inputs and i.category == water for i in n.inputs) for n in path[1:])
 
 
 def _chilled(path: tuple, heat: int | None) -> bool:
@@ -91,7 +91,7 @@ def _path_ok(domain, path: tuple, alt: dict) -> bool:
     if heat is None:
         return "with" not in alt or _with(path, _split(alt["with"]))
     medium = alt.get("medium")
-    if medium is not None and _in_water(path) != (medium == "water"):
+    if medium is not None and _in_water(path, domain.engine.water) != (medium == "water"):
         return False
     for key, after, want in (("before_heat", False, True), ("not_before_heat", False, False),
                              ("while_hot", True, True), ("not_while_hot", True, False)):

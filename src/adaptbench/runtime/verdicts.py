@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from ..compiler import ast as A
 from ..compiler.model import CompiledDomain, Persona, Task
+from .tables import domain_tables
 from .verify import Ctx, Evaluation, Outcome, Verdict, compiled
 from .world import World
 
@@ -16,7 +17,7 @@ def verdict(ctx: Ctx, pref) -> Verdict:
     comps = [c for c in ctx.task.components if any(c in ctx.expand(t) for t in targets)]
     if not comps:
         return Verdict(pref.id, pref.text, "inapplicable", f"the task has no {' or '.join(targets)}")
-    per_dish = _per_dish_cond(rule)
+    per_dish = _per_dish_cond(ctx.domain, rule)
     if rule.scope is not None and rule.scope.cond is not None and not per_dish:
         cond = compiled(ctx.domain, rule, "cond")(ctx, [])
         if not cond.ok:
@@ -58,17 +59,15 @@ def _results(ctx: Ctx, rule: A.Rule, comps: list, per_dish: bool) -> tuple:
     return results, skipped
 
 
-def _per_dish_cond(rule: A.Rule) -> bool:
-    """Whether the scope condition talks about the dish (`it`, `sides`): then it is checked per dish."""
-    hit = _PER_DISH.get(id(rule))
-    if hit is None or hit[0] is not rule:
-        cond = rule.scope.cond if rule.scope is not None else None
-        found = cond is not None and any(isinstance(n, A.Pred) and n.subject in ("it", "sides") for n in A.walk(cond))
-        hit = _PER_DISH[id(rule)] = (rule, found)
-    return hit[1]
+def _per_dish_cond(domain: CompiledDomain, rule: A.Rule) -> bool:
+    """Whether the scope condition talks about the dish (`it`, `sides`): then it is checked per dish
+    (cached in the domain's tables)."""
+    return domain_tables(domain).per_dish.get_or_build(rule, lambda: _condition_per_dish(rule))
 
 
-_PER_DISH: dict = {}  # id(rule) -> (rule, whether its condition is per dish)
+def _condition_per_dish(rule: A.Rule) -> bool:
+    cond = rule.scope.cond if rule.scope is not None else None
+    return cond is not None and any(isinstance(n, A.Pred) and n.subject in ("it", "sides") for n in A.walk(cond))
 
 
 def evaluate(domain: CompiledDomain, world: World, task: Task, persona: Persona | None) -> Evaluation:

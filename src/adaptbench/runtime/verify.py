@@ -12,9 +12,11 @@ from functools import lru_cache
 
 from ..compiler import ast as A
 from ..compiler.model import CompiledDomain, Task
+from ..compiler.predicates import evaluators
 from .classes import entity_matcher, node_matcher, render
 from .dishes import Dish, table
 from .styles import process_ok
+from .tables import domain_tables
 from .world import Node, World
 
 
@@ -162,21 +164,13 @@ class Ctx:
         return self.kind(dish, comp) in targets
 
 
-_COMPILED: dict = {}
-
-
 def compiled(domain: CompiledDomain, rule: A.Rule, part: str = "expr"):
     """A rule's expression (or its scope condition, `part="cond"`) compiled to `f(ctx, it) -> Outcome`.
 
-    Cached by rule identity: compiled domains are immutable and long-lived.
+    Cached in the domain's tables (a bounded LRU keyed by the rule object).
     """
-    key = (id(rule), part)
-    hit = _COMPILED.get(key)
-    if hit is None or hit[0] is not rule:
-        node = rule.expr if part == "expr" else rule.scope.cond
-        hit = (rule, _expr(node, domain))
-        _COMPILED[key] = hit
-    return hit[1]
+    node = rule.expr if part == "expr" else rule.scope.cond
+    return domain_tables(domain).rules.get_or_build(rule, lambda: _expr(node, domain), part)
 
 
 def _expr(node, domain):
@@ -414,6 +408,7 @@ def _p_served_before(node: A.Pred, domain):
 
 def _p_available(node: A.Pred, domain):
     item, text = node_matcher(node.args[0]), render(node.args[0])
+    available = domain_tables(domain).available  # (predicate, scene) -> bool: a property of the scene
 
     def in_scene(d: CompiledDomain, present) -> bool:
         for eid in present:
@@ -426,10 +421,7 @@ def _p_available(node: A.Pred, domain):
 
     def check(ctx, it):
         scene = ctx.world.scene
-        key = (id(node), scene.scene_id)
-        ok = _AVAILABLE.get(key)
-        if ok is None:
-            ok = _AVAILABLE[key] = in_scene(ctx.domain, scene.present)
+        ok = available.get_or_build(node, lambda: in_scene(ctx.domain, scene.present), scene.scene_id)
         return Outcome(ok, f"{text} is {'' if ok else 'not '}available")
     return check
 
@@ -440,7 +432,6 @@ def _entity_node(domain: CompiledDomain, eid: str) -> Node:
     return Node(0, eid, e.category, frozenset(e.tags), entity=eid)
 
 
-_AVAILABLE: dict = {}  # (predicate, scene) -> bool: availability is a property of the sampled scene
 
 
 @lru_cache(maxsize=1024)
@@ -481,11 +472,12 @@ def _p_made(node: A.Pred, domain):
     return check
 
 
-_PREDS = {"has": _p_has, "has_no": _p_has_no, "has_only": _p_has_only, "count": _p_count, "is": _p_is,
+_PREDS = evaluators("verdict", {  # registered by the names declared in compiler/predicates.py
+          "has": _p_has, "has_no": _p_has_no, "has_only": _p_has_only, "count": _p_count, "is": _p_is,
           "served_at": _p_served_at, "served_in": _p_served_in, "made_in": _p_made_in,
           "made_with": _p_made_with, "topped_with": _p_topped_with, "made_by": _p_made_by,
           "cooked_in": _p_cooked_in, "adds_before": _p_adds_before, "served_before": _p_served_before,
-          "available": _p_available, "uses": _p_uses, "task_has": _p_task_has, "made": _p_made}
+          "available": _p_available, "uses": _p_uses, "task_has": _p_task_has, "made": _p_made})
 
 
 from .verdicts import evaluate, verdict  # noqa: E402  (preference-level verdicts; re-exported here)

@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 
 from ..compiler.model import CompiledDomain, EntitySpec
 from .scene import Scene
+from .tables import domain_tables
 
 
 class Node:
@@ -67,14 +68,11 @@ class _Template:
     edible: tuple
 
 
-_TEMPLATES: dict = {}
-
-
 def _template(domain: CompiledDomain, scene: Scene) -> _Template:
-    key = (id(domain), scene.scene_id)
-    hit = _TEMPLATES.get(key)
-    if hit is not None and hit[0] is domain:
-        return hit[1]
+    return domain_tables(domain).world_templates.get_or_build(scene.scene_id, lambda: _build_template(domain, scene))
+
+
+def _build_template(domain: CompiledDomain, scene: Scene) -> _Template:
     specs = {e.id: e for e in domain.entities if e.id in scene.present}
     children: dict = {e: [] for e in specs}
     for e, loc in scene.location:
@@ -89,9 +87,6 @@ def _template(domain: CompiledDomain, scene: Scene) -> _Template:
     t = _Template(specs, dict(scene.location), children, sources, index, known,
                   frozenset(c for e in known for c in specs[e].contents),
                   tuple((e, s.category, frozenset(s.tags)) for e, s in specs.items() if "edible" in s.tags))
-    if len(_TEMPLATES) > 1024:
-        _TEMPLATES.clear()
-    _TEMPLATES[key] = (domain, t)
     return t
 
 
