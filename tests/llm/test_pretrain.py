@@ -10,13 +10,12 @@ pytestmark = SKIP_MODELS
 
 
 def _oracle_record(domain, task="eggs", seed=0):
-    from adaptbench.agents.scripted import RUNNERS
+    from adaptbench.agents.scripted import play
     from adaptbench.agents.users import OfflineUser
     from adaptbench.runtime.env import Env
 
     env = Env(domain, task, "juan", seed, user=OfflineUser(domain, domain.persona["juan"], domain.task[task]))
-    env.reset()
-    RUNNERS["oracle"](env)
+    play("oracle", env)
     steps = [{"action": e.text, "ok": e.ok, "observation": e.observation, "reply": e.reply} for e in env.world.trace]
     return {"agent": "oracle", "persona": "juan", "task": task, "seed": seed, "steps": steps}
 

@@ -1,7 +1,7 @@
 """Grammar-constrained decoding for transformers, backed by llguidance.
 
-    lltok = ll_tokenizer(tokenizer, vocab_size)        # built once per (tokenizer, vocab), cached
-    proc = GrammarProcessor(lltok, [grammar_a, None, grammar_b], eos_id)
+    matchers = Matchers(ll_tokenizer(tokenizer, vocab_size))   # built once per (tokenizer, vocab)
+    proc = GrammarProcessor(matchers, [grammar_a, None, grammar_b], eos_id, vocab_size)
     model.generate(..., logits_processor=LogitsProcessorList([proc]))
 
 One `LLMatcher` per batch row, each with its own Lark grammar (None: that row is unconstrained). Each
@@ -14,8 +14,6 @@ emits EOS; its later (padding) tokens are not fed to the matcher.
 from __future__ import annotations
 
 import time
-import weakref
-from collections import OrderedDict
 
 import llguidance
 import llguidance.hf
@@ -23,39 +21,33 @@ import torch
 from llguidance.torch import allocate_token_bitmask, fill_next_token_bitmask_par
 from transformers import LogitsProcessor
 
-_TOKENIZERS: dict = {}  # (id(hf tokenizer), vocab) -> (weakref, LLTokenizer)
-_EXECUTOR: list = []
+_EXECUTOR: list = []  # the process's llguidance executor, made on first use
+MATCHER_CACHE = 256
 
 
 def ll_tokenizer(tokenizer, vocab_size: int | None = None) -> llguidance.LLTokenizer:
     """The llguidance tokenizer of a Hugging Face fast tokenizer (with `vocab_size` the model's
-    logits width when it differs from the tokenizer's), built once per tokenizer and reused."""
-    key = (id(tokenizer), vocab_size)
-    hit = _TOKENIZERS.get(key)
-    if hit is not None and hit[0]() is tokenizer:
-        return hit[1]
-    lltok = llguidance.hf.from_tokenizer(tokenizer, n_vocab=vocab_size)
-    _TOKENIZERS[key] = (weakref.ref(tokenizer), lltok)
-    return lltok
+    logits width when it differs from the tokenizer's), built once and kept on the tokenizer object."""
+    built = tokenizer.__dict__.setdefault("_adapt_lltok", {})
+    if vocab_size not in built:
+        built[vocab_size] = llguidance.hf.from_tokenizer(tokenizer, n_vocab=vocab_size)
+    return built[vocab_size]
 
 
-_MATCHERS: OrderedDict = OrderedDict()  # (id(lltok), grammar text) -> fresh LLMatcher (copied, never used)
-MATCHER_CACHE = 256
+class Matchers:
+    """Pristine matchers by grammar text for one llguidance tokenizer (bounded LRU); `get` returns a
+    copy. Building a matcher from a 37 KiB state grammar costs ~15 ms, copying one ~1 µs, and an
+    episode's grammar changes only when it observes more."""
 
+    def __init__(self, lltok, maxsize: int = MATCHER_CACHE):
+        from ..runtime.tables import LRU
 
-def matcher(lltok, grammar: str) -> llguidance.LLMatcher:
-    """A fresh matcher for a grammar: a copy of a cached pristine one (building one from a 37 KiB state
-    grammar costs ~15 ms, copying ~1 µs; an episode's grammar changes only when it observes more)."""
-    key = (id(lltok), grammar)
-    hit = _MATCHERS.get(key)
-    if hit is None or hit[0] is not lltok:
-        hit = (lltok, llguidance.LLMatcher(lltok, grammar, log_level=0))
-        _MATCHERS[key] = hit
-        while len(_MATCHERS) > MATCHER_CACHE:
-            _MATCHERS.popitem(last=False)
-    else:
-        _MATCHERS.move_to_end(key)
-    return hit[1].deep_copy()
+        self.lltok = lltok
+        self._lru = LRU(maxsize)
+
+    def get(self, grammar: str) -> llguidance.LLMatcher:
+        """A fresh matcher for the grammar."""
+        return self._lru.get_or_build(grammar, lambda: llguidance.LLMatcher(self.lltok, grammar, log_level=0)).deep_copy()
 
 
 def executor() -> llguidance.LLExecutor:
@@ -108,9 +100,9 @@ class GrammarProcessor(LogitsProcessor):
     an action (`closing`: EOS, a closing quote) are kept when the grammar allows any of them. Every
     completion then parses, however long the model would have rambled."""
 
-    def __init__(self, lltok, grammars, eos_id: int, vocab_size: int, limits=None, closing=None,
+    def __init__(self, matchers: Matchers, grammars, eos_id: int, vocab_size: int, limits=None, closing=None,
                  reserve: int = 2):
-        self.matchers = [None if g is None else matcher(lltok, g) for g in grammars]
+        self.matchers = [None if g is None else matchers.get(g) for g in grammars]
         for i, m in enumerate(self.matchers):
             if m is not None and m.is_error():
                 raise ValueError(f"grammar of row {i} rejected by llguidance: {m.get_error()}")

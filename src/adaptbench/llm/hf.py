@@ -19,7 +19,7 @@ from transformers import (
 )
 
 from .backend import Backend, Completion, Scored, cut_at_stop
-from .constrained import GrammarProcessor, closing_tokens, ll_tokenizer
+from .constrained import GrammarProcessor, Matchers, closing_tokens, ll_tokenizer
 
 DTYPES = {"auto": "auto", "float32": torch.float32, "bfloat16": torch.bfloat16, "float16": torch.float16}
 
@@ -79,6 +79,7 @@ class TransformersBackend(Backend):
         self.model = AutoModelForCausalLM.from_pretrained(model, dtype=DTYPES[dtype]).to(device).eval()
         self.vocab = self.model.get_output_embeddings().weight.shape[0]
         self.lltok = ll_tokenizer(self.tokenizer, self.vocab)
+        self.matchers = Matchers(self.lltok)
         self.pad_id = self.tokenizer.pad_token_id if self.tokenizer.pad_token_id is not None \
             else self.tokenizer.eos_token_id
 
@@ -105,7 +106,7 @@ class TransformersBackend(Backend):
         ids, mask = _left_pad(prompts, self.pad_id)
         ids, mask = ids.to(self.device), mask.to(self.device)
         eos = self.tokenizer.eos_token_id
-        proc = (GrammarProcessor(self.lltok, [r.grammar for r in reqs], eos, self.vocab,
+        proc = (GrammarProcessor(self.matchers, [r.grammar for r in reqs], eos, self.vocab,
                                  [r.max_tokens for r in reqs], closing_tokens(self.tokenizer, eos))
                 if any(r.grammar is not None for r in reqs) else None)
         stops = RowStops(self.tokenizer, ids.shape[1], [r.max_tokens for r in reqs], [r.stop for r in reqs])
