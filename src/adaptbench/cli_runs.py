@@ -152,6 +152,11 @@ def _cmd_eval(args) -> int:
     none = sum(1 for r in records if r.satisfaction_rate is None)
     if none and not args.by:
         print(f"{none} episode(s) had no applicable preference and are left out of the satisfaction rates")
+    if not args.by:
+        from .harness.evaluate import notes
+
+        for line in notes(rows):
+            print(line)
     if args.plot:
         _plot(args.plot, rows if not args.by else _agent_rows(args, records), records)
     if args.csv:

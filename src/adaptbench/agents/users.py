@@ -93,6 +93,13 @@ class OfflineUser:
             self._memory[key] = self._answer(question)
         return self._memory[key]
 
+    def targets(self, question: str) -> tuple:
+        """The ids of the preferences this user answers `question` from (empty for a question about
+        where things are, or one that names no preference): what a question is judged by."""
+        if location_question(self.domain).search(question):
+            return ()
+        return tuple(p.id for p in self.pick(question))
+
     def _answer(self, question: str) -> str:
         if location_question(self.domain).search(question):
             return NO_LOCATION
@@ -109,3 +116,9 @@ def first_person(text: str) -> str:
     if lowered.startswith(("prefer ", "prefers ")):
         return "I " + lowered.replace("prefers ", "prefer ", 1) + "."
     return f"I'd like this: {lowered}."
+
+
+def question_targets(env, question: str) -> tuple:
+    """The preference ids a question asked in `env` targets, as the offline user's matcher decides:
+    what the offline user answered from, and the judge of any other user's questions."""
+    return OfflineUser(env.domain, env.persona, env.task).targets(question)

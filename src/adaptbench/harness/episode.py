@@ -6,7 +6,7 @@
 For each step the runner builds the agent's `View` (task text, layout, history of `Turn`s, what it may
 name, dishes made so far, step), asks the policy for a `Decision`, steps the simulator (which asks the
 user when the action is a question) and records the step: action, observation, ok, reply, and for model
-policies the decision's prompt, completion and token statistics.
+policies the decision's prompt, completion and token statistics; for a question, the preferences it targets.
 """
 
 from __future__ import annotations
@@ -42,8 +42,20 @@ class Episode:
         turn = Turn(decision.action, result.observation, result.ok, result.reply)
         self.history.append(turn)
         self.steps.append(StepRecord(decision.action, result.ok, result.observation, result.reply,
-                                     decision.prompt, decision.completion, decision.stats or None))
+                                     decision.prompt, decision.completion, decision.stats or None,
+                                     targets(self.env)))
         return turn
+
+
+def targets(env: Env):
+    """For a step that asked a question: the ids of the preferences it targets (the offline user's
+    matcher: what the offline user answered from, the judge of any other user); None otherwise."""
+    from ..agents.users import question_targets
+
+    event = env.world.trace[-1] if env.world.trace else None
+    if event is None or event.action != "ask" or not event.ok:
+        return None
+    return question_targets(env, event.args.get("question", ""))
 
 
 def made(env: Env) -> tuple:

@@ -1,12 +1,15 @@
 """Evaluation tables in the paper's Table 1 layout: preference satisfaction rate and questions asked,
 mean ± standard error, for seen and unseen personas under the cross-validation splits of the spec
-(`spec/splits.yaml`: the release's four 12/4 splits; `CompiledDomain.unseen`)."""
+(`spec/splits.yaml`: the release's four 12/4 splits; `CompiledDomain.unseen`); then pass^k over scene
+seeds and question precision (`metrics.py`), over all of an agent's episodes."""
 
 from __future__ import annotations
 
 import csv
 import io
 import math
+
+from .metrics import pass_k, precision
 
 
 def load_records(paths, splits=None) -> list:
@@ -52,8 +55,8 @@ def table(records: list, unseen: dict | None = None) -> list:
                 if r.satisfaction_rate is not None:
                     cols[col][0].append(r.satisfaction_rate)
                 cols[col][1].append(r.questions)
-        n = sum(1 for r in records if r.agent == a)
-        rows.append({"agent": a, "episodes": n,
+        mine = [r for r in records if r.agent == a]
+        rows.append({"agent": a, "episodes": len(mine), "pass_k": pass_k(mine), "precision": precision(mine),
                      "rate_seen": mean_se(cols["seen"][0]), "rate_unseen": mean_se(cols["unseen"][0]),
                      "questions_seen": mean_se(cols["seen"][1]), "questions_unseen": mean_se(cols["unseen"][1])})
     return rows
@@ -75,13 +78,38 @@ def _num(ms) -> str:
 
 
 HEADER = ["Method", "Episodes", "Satisfaction (seen)", "Satisfaction (unseen)", "Questions (seen)",
-          "Questions (unseen)"]
+          "Questions (unseen)", "pass^k", "Question precision"]
+
+
+def _pass_k(pk) -> str:
+    if pk.rate is None:
+        return "n/a"
+    return f"{pk.rate * 100:.1f}% ({pk.passed}/{pk.pairs}, k={pk.k_text})"
+
+
+def _precision(pr) -> str:
+    return "n/a" if pr.rate is None else f"{pr.rate * 100:.1f}% ({pr.precise}/{pr.judged})"
 
 
 def cells(row: dict) -> list:
     """The printable cells of a row."""
     return [row["agent"], str(row["episodes"]), _pct(row["rate_seen"]), _pct(row["rate_unseen"]),
-            _num(row["questions_seen"]), _num(row["questions_unseen"])]
+            _num(row["questions_seen"]), _num(row["questions_unseen"]), _pass_k(row["pass_k"]),
+            _precision(row["precision"])]
+
+
+def notes(rows: list) -> list:
+    """Lines said under the table: pairs left out of pass^k, questions in records too old to judge."""
+    out = []
+    left = sum(r["pass_k"].left_out for r in rows)
+    if left:
+        out.append(f"{left} (agent, persona, task) pair(s) had no applicable preference in any seed and are "
+                   "left out of pass^k")
+    old = sum(r["precision"].unjudged for r in rows)
+    if old:
+        out.append(f"{old} question(s) in records older than version 2 carry no targets and are not judged "
+                   "for question precision")
+    return out
 
 
 def render_text(rows: list) -> str:
@@ -99,7 +127,9 @@ def render_markdown(rows: list) -> str:
 
 
 CSV_HEADER = ["agent", "episodes", "rate_seen", "rate_seen_se", "rate_unseen", "rate_unseen_se", "questions_seen",
-              "questions_seen_se", "questions_unseen", "questions_unseen_se"]
+              "questions_seen_se", "questions_unseen", "questions_unseen_se", "pass_k", "pass_k_passed",
+              "pass_k_pairs", "k_min", "k_max", "pass_k_left_out", "question_precision", "questions_precise",
+              "questions_judged"]
 
 
 def csv_text(header: list, rows: list) -> str:
@@ -115,4 +145,10 @@ def csv_text(header: list, rows: list) -> str:
 def render_csv(rows: list) -> str:
     """CSV with numeric columns (empty where there is nothing to average)."""
     return csv_text(CSV_HEADER, [[r["agent"], r["episodes"], *r["rate_seen"], *r["rate_unseen"], *r["questions_seen"],
-                                  *r["questions_unseen"]] for r in rows])
+                                  *r["questions_unseen"], *_metric_cells(r)] for r in rows])
+
+
+def _metric_cells(row: dict) -> list:
+    pk, pr = row["pass_k"], row["precision"]
+    k = pk.k or (None, None)
+    return [pk.rate, pk.passed, pk.pairs, *k, pk.left_out, pr.rate, pr.precise, pr.judged]

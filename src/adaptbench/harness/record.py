@@ -11,6 +11,9 @@ Version history (`version` field):
   the verdicts (preferences, satisfied, violated, satisfaction rate, questions, completed components),
   `notes` when a scripted agent could not do part of the task, or, for an episode that ended in an
   exception, `error` and `traceback`; `split` for a trained agent's evaluation.
+- 2: a question step carries `targets`: the ids of the preferences the question targets, as the
+  offline user's matcher decides (what the offline user answered from; the judge of an LLM user's
+  questions). Older records have none: their question precision is n/a.
 
 A record of a newer version than this code knows is refused (`RecordError`), never half-read.
 """
@@ -20,7 +23,7 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass, field
 
-RECORD_VERSION = 1
+RECORD_VERSION = 2
 VERDICTS = ("satisfied", "violated", "inapplicable")
 
 
@@ -35,7 +38,8 @@ def _number(x) -> bool:
 @dataclass(frozen=True)
 class StepRecord:
     """One step: the action, whether it succeeded, the observation, the user's reply; for model
-    policies the prompt, the completion and token statistics (absent for scripted agents)."""
+    policies the prompt, the completion and token statistics (absent for scripted agents); for a
+    question, `targets`: the ids of the preferences it targets (None: not recorded, before version 2)."""
 
     action: str
     ok: bool
@@ -44,6 +48,12 @@ class StepRecord:
     prompt: object = None
     completion: str | None = None
     stats: dict | None = None
+    targets: tuple | None = None
+
+    @property
+    def is_question(self) -> bool:
+        """Whether the step asked the user a question (an `Ask` that succeeded)."""
+        return self.ok and self.action.startswith("Ask ")
 
     def to_dict(self) -> dict:
         """JSON-friendly form (model fields only when present)."""
@@ -54,6 +64,8 @@ class StepRecord:
             out["completion"] = self.completion
         if self.stats:
             out["stats"] = self.stats
+        if self.targets is not None:
+            out["targets"] = list(self.targets)
         return out
 
     @classmethod
@@ -61,8 +73,12 @@ class StepRecord:
         """Read a step; RecordError when it is malformed."""
         if not isinstance(data, dict) or not isinstance(data.get("action"), str):
             raise RecordError("bad steps")
+        targets = data.get("targets")
+        if targets is not None and (not isinstance(targets, list | tuple) or not all(isinstance(t, str) for t in targets)):
+            raise RecordError("bad steps")
         return cls(data["action"], bool(data.get("ok")), str(data.get("observation", "")),
-                   str(data.get("reply") or ""), data.get("prompt"), data.get("completion"), data.get("stats"))
+                   str(data.get("reply") or ""), data.get("prompt"), data.get("completion"), data.get("stats"),
+                   None if targets is None else tuple(targets))
 
 
 @dataclass(frozen=True)

@@ -12,7 +12,9 @@ from __future__ import annotations
 import traceback
 from pathlib import Path
 
+from ..harness.episode import targets
 from ..harness.policy import Decision, Turn, View
+from ..harness.record import RECORD_VERSION
 from ..harness.results import ResultsFile, episode_key
 from ..harness.rollout import RolloutResult, _write
 from ..progress import Progress
@@ -52,8 +54,10 @@ class Running:
         """Take the decided action and record the step."""
         r = self.env.step(d.action)
         self.history.append(Turn(d.action, r.observation, r.ok, r.reply))
+        asked = targets(self.env)
         self.steps.append({"action": d.action, "ok": r.ok, "observation": r.observation, "reply": r.reply,
-                           "completion": d.completion, **({"stats": d.stats} if d.stats else {})})
+                           "completion": d.completion, **({"stats": d.stats} if d.stats else {}),
+                           **({"targets": list(asked)} if asked is not None else {})})
 
 
 def max_steps(policy) -> int:
@@ -64,15 +68,15 @@ def max_steps(policy) -> int:
 
 def _error(ep: Running, config: dict, spec_hash: str) -> dict:
     j = ep.job
-    return {"agent": j.agent, "agent_config": config, "persona": j.persona, "task": j.task, "seed": j.seed,
-            "spec_hash": spec_hash, "error": ep.error[0], "traceback": ep.error[1]}
+    return {"version": RECORD_VERSION, "agent": j.agent, "agent_config": config, "persona": j.persona,
+            "task": j.task, "seed": j.seed, "spec_hash": spec_hash, "error": ep.error[0], "traceback": ep.error[1]}
 
 
 def _record(ep: Running, config: dict, spec_hash: str) -> dict:
     ev = ep.env.evaluate()
     j = ep.job
-    return {"agent": j.agent, "agent_config": config, "persona": j.persona, "task": j.task, "seed": j.seed,
-            "spec_hash": spec_hash, "scene": ep.env.scene.scene_id, "steps": ep.steps, "n_steps": len(ep.steps),
+    return {"version": RECORD_VERSION, "agent": j.agent, "agent_config": config, "persona": j.persona,
+            "task": j.task, "seed": j.seed, "spec_hash": spec_hash, "scene": ep.env.scene.scene_id, "steps": ep.steps, "n_steps": len(ep.steps),
             "satisfied": ev.satisfied, "violated": ev.violated, **ev.as_dict()}
 
 
