@@ -21,11 +21,12 @@ from bench.common import SPEC, report  # noqa: E402
 
 def _requests(domain, backend, n: int, grammar: bool):
     from adaptbench.grammars import GrammarCache
+    from adaptbench.harness.episode import Episode
     from adaptbench.harness.rollout import Job
     from adaptbench.llm.backend import Request
     from adaptbench.llm.chat import render
     from adaptbench.llm.prompts import PromptBuilder
-    from adaptbench.llm.rollout import Running
+    from adaptbench.llm.rollout import episode_id
     from adaptbench.runtime.env import Env
     from adaptbench.runtime.index import runtime_index
 
@@ -33,7 +34,7 @@ def _requests(domain, backend, n: int, grammar: bool):
     out = []
     for i in range(n):
         task = list(domain.task)[i % len(domain.task)]
-        ep = Running(Job("planner", "juan", task, i), Env(domain, task, "juan", i))
+        ep = Episode(episode_id(Job("planner", "juan", task, i)), Env(domain, task, "juan", i))
         text = render(backend.tokenizer, PromptBuilder(domain, "planner").prompt(ep.view()))
         g = cache.state(task, ep.env.observed()).text if grammar else None
         out.append(Request(text, g, (), 32))

@@ -186,3 +186,49 @@ def test_make_policy_names_every_scripted_agent(domain):
     from adaptbench.agents.scripted import AGENTS
 
     assert [make_policy(a, domain).name for a in AGENTS] == list(AGENTS)
+
+
+def test_iter_batch_refills_slots_from_a_generator_and_matches_episodes_run_alone(domain):
+    from adaptbench.harness.episode import iter_batch
+
+    persona = domain.personas[0].id
+    cases = [(t, s) for t in ("eggs", "cereal") for s in (0, 1, 2)]
+    drawn = []
+
+    def envs():
+        for t, s in cases:
+            drawn.append((t, s))
+            yield f"{t}/{s}", _env(domain, persona, t, s)
+
+    policy = Counting(AlwaysAsk(domain))
+    stream = iter_batch(policy, envs(), width=2)
+    first = next(stream)
+    assert len(drawn) == 2  # episodes are drawn only as slots free up
+    eps = [first, *stream]
+    assert sorted(e.id for e in eps) == sorted(f"{t}/{s}" for t, s in cases)
+    assert max(policy.rows) == 2 and policy.rows[-1] == 1
+    for ep in eps:
+        t, s = ep.id.split("/")
+        assert _texts(ep) == _texts(run_episode(AlwaysAsk(domain), _env(domain, persona, t, int(s))))
+
+
+def test_iter_batch_catch_turns_a_step_exception_into_that_episodes_error(domain, monkeypatch):
+    from adaptbench.harness.episode import iter_batch
+
+    real = Env.step
+
+    def step(self, text):
+        if self.task.id == "cereal":
+            raise RuntimeError("boom")
+        return real(self, text)
+
+    monkeypatch.setattr(Env, "step", step)
+    persona = domain.personas[0].id
+    envs = [(t, _env(domain, persona, t, 0)) for t in ("eggs", "cereal")]
+    eps = {ep.id: ep for ep in iter_batch(NeverAsk(domain), envs, width=2, catch=True)}
+    assert eps["cereal"].error[0] == "RuntimeError: boom" and "Traceback" in eps["cereal"].error[1]
+    assert eps["eggs"].error is None and eps["eggs"].done
+    with pytest.raises(ValueError, match="distinct"):
+        list(iter_batch(NeverAsk(domain), [("a", Env(domain, "eggs", seed=0)), ("a", Env(domain, "eggs", seed=1))]))
+    with pytest.raises(ValueError, match="at least 1"):
+        list(iter_batch(NeverAsk(domain), [], width=0))

@@ -131,3 +131,29 @@ def test_an_episode_that_raises_becomes_an_error_record(domain, monkeypatch):
     recs = {r["task"]: r for r in run_batched(jobs, domain, LookForEggs(), _offline, batch=2, steps=2)}
     assert recs["cereal"]["error"] == "RuntimeError: boom" and "traceback" in recs["cereal"]
     assert recs["eggs"]["n_steps"] == 2
+
+
+def test_llm_rollout_runs_on_the_harness_loop_one_batched_call_per_round(domain, backend, tmp_path):
+    from adaptbench.harness.record import RECORD_VERSION, EpisodeRecord
+    from adaptbench.llm.policies import LLMPolicy
+    from adaptbench.llm.rollout import rollout_llm
+
+    class Counted(LLMPolicy):
+        rows: list = []
+
+        def act_batch(self, views):
+            self.rows.append(len(views))
+            return super().act_batch(views)
+
+    policy = Counted(backend, domain, "planner", max_tokens=16)
+    jobs = [Job("planner", p, t, 0) for p in ("juan", "miranda") for t in ("eggs", "cereal")] + \
+        [Job("planner", "juan", "eggs", 1)]
+    out = tmp_path / "p.jsonl"
+    res = rollout_llm(jobs, out, domain, policy, _offline, batch=2, progress=False, steps=2)
+    assert res.ran == 5 and res.errors == 0
+    assert max(policy.rows) == 2 and sum(policy.rows) == 5 * 2  # slots refilled: 2 rows a round until the last
+    recs = [EpisodeRecord.from_json(line) for line in out.read_text().splitlines()]
+    assert all(r.version == RECORD_VERSION and r.n_steps == 2 for r in recs)
+    assert all(r.config == {**policy.config(), "user": "offline", "max_steps": 2} for r in recs)
+    assert all(s.completion == s.action and s.stats["batch"] in (1, 2) for r in recs for s in r.steps)
+    assert rollout_llm(jobs, out, domain, policy, _offline, batch=2, progress=False, steps=2).present == 5

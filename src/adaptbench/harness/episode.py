@@ -2,6 +2,7 @@
 
     ep = run_episode(policy, env, "oracle/juan/eggs/0")     # one episode, start to end
     eps = run_batch(policy, [(id1, env1), (id2, env2)])     # many at once: act_batch on the rows still running
+    for ep in iter_batch(policy, envs(), width=16, catch=True): ...  # a stream, 16 at a time, slots refilled
 
 For each step the runner builds the agent's `View` (task text, layout, history of `Turn`s, what it may
 name, dishes made so far, step), asks the policy for a `Decision`, steps the simulator (which asks the
@@ -10,6 +11,8 @@ policies the decision's prompt, completion and token statistics; for a question,
 """
 
 from __future__ import annotations
+
+import traceback
 
 from ..runtime.env import Env
 from .policy import Decision, Policy, Turn, View
@@ -24,6 +27,7 @@ class Episode:
         self.layout = env.reset()
         self.history: list = []
         self.steps: list = []
+        self.error = None  # (message, traceback) when stepping raised (`iter_batch(catch=True)`)
 
     @property
     def done(self) -> bool:
@@ -80,31 +84,63 @@ def run_episode(policy: Policy, env: Env, episode: str = "episode") -> Episode:
 def run_batch(policy: Policy, envs: list) -> list:
     """Run several episodes at once: each round, `policy.act_batch` decides for every episode still
     running. `envs` is a list of (episode id, env); returns the finished `Episode`s in that order."""
-    episodes = [Episode(eid, env) for eid, env in envs]
-    if len({e.id for e in episodes}) != len(episodes):
+    envs = list(envs)
+    if len({eid for eid, _ in envs}) != len(envs):
         raise ValueError("episode ids in one batch must be distinct")
+    finished = {ep.id: ep for ep in iter_batch(policy, envs)}
+    return [finished[eid] for eid, _ in envs]
+
+
+def iter_batch(policy: Policy, envs, width: int | None = None, catch: bool = False):
+    """Run episodes together and yield each `Episode` as it finishes (in finishing order). `envs` is any
+    iterable of (episode id, env), a generator included, drawn as slots free up: at most `width`
+    episodes run at once (None: all). Each round `policy.act_batch` decides for every running episode
+    in one call. With `catch`, an exception while stepping one episode's action ends that episode with
+    `error` = (message, traceback) and the others go on; an exception from the policy ends the batch,
+    and the policy forgets every episode still running."""
+    if width is not None and width < 1:
+        raise ValueError(f"batch width must be at least 1 (got {width})")
+    source = iter(envs)
     running: list = []
     try:
-        for ep in episodes:
-            running.append(ep)
-            policy.start(ep.id, ep.env)
-        running = [ep for ep in episodes if not _finish(policy, ep)]
-        while running:
-            decisions = policy.act_batch([ep.view() for ep in running])
-            if len(decisions) != len(running):
-                raise ValueError(f"{type(policy).__name__}.act_batch returned {len(decisions)} decisions "
-                                 f"for {len(running)} views")
-            for ep, decision in zip(running, decisions, strict=True):
-                ep.apply(decision if isinstance(decision, Decision) else Decision(str(decision)))
-            running = [ep for ep in running if not _finish(policy, ep)]
-    finally:  # an exception ends the batch: the policy forgets every episode still running
+        while True:
+            _refill(policy, source, running, width)
+            over = [ep for ep in running if ep.done or ep.error is not None]
+            if over:
+                for ep in over:
+                    running.remove(ep)
+                    policy.end(ep.id)
+                    yield ep
+                continue
+            if not running:
+                return
+            _advance(policy, running, catch)
+    finally:
         for ep in running:
             policy.end(ep.id)
-    return episodes
 
 
-def _finish(policy: Policy, ep: Episode) -> bool:
-    if ep.done:
-        policy.end(ep.id)
-        return True
-    return False
+def _refill(policy: Policy, source, running: list, width: int | None) -> None:
+    while width is None or len(running) < width:
+        item = next(source, None)
+        if item is None:
+            return
+        ep = Episode(*item)
+        if any(other.id == ep.id for other in running):
+            raise ValueError(f"episode ids in one batch must be distinct ('{ep.id}' is running)")
+        running.append(ep)
+        policy.start(ep.id, ep.env)
+
+
+def _advance(policy: Policy, running: list, catch: bool) -> None:
+    decisions = policy.act_batch([ep.view() for ep in running])
+    if len(decisions) != len(running):
+        raise ValueError(f"{type(policy).__name__}.act_batch returned {len(decisions)} decisions "
+                         f"for {len(running)} views")
+    for ep, decision in zip(running, decisions, strict=True):
+        try:
+            ep.apply(decision if isinstance(decision, Decision) else Decision(str(decision)))
+        except Exception as exc:
+            if not catch:
+                raise
+            ep.error = (f"{type(exc).__name__}: {exc}", traceback.format_exc())

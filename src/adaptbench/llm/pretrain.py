@@ -33,14 +33,15 @@ def replay_views(domain, record):
     """(view, made_after, action) for each step of a record, rebuilt by replaying it; None when the
     replay's observations differ from the record's."""
     from ..agents.users import OfflineUser
+    from ..harness.episode import Episode
     from ..harness.policy import Decision
     from ..harness.rollout import Job
     from ..runtime.env import Env
-    from .rollout import Running
+    from .rollout import episode_id
 
     persona, task = domain.persona[record["persona"]], domain.task[record["task"]]
     env = Env(domain, task.id, persona.id, record["seed"], user=OfflineUser(domain, persona, task))
-    ep = Running(Job(record["agent"], persona.id, task.id, record["seed"]), env)
+    ep = Episode(episode_id(Job(record["agent"], persona.id, task.id, record["seed"])), env)
     out, made_after = [], []
     for step in record["steps"]:
         view = ep.view()
