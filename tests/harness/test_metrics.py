@@ -109,3 +109,12 @@ def test_cli_eval_shows_metrics_and_reads_old_records(tmp_path, domain, capsys):
     assert main(["eval", str(old)]) == 0
     text = capsys.readouterr().out
     assert "n/a" in text and "not judged for question precision" in text
+
+
+def test_any_users_questions_are_judged_by_the_offline_matcher(domain):
+    persona = domain.personas[0]
+    pref = persona.preferences[0]
+    question = f"How do you like the {pref.topics[0]}?" if pref.topics else pref.text
+    env = Env(domain, "eggs", persona.id, 0, user=lambda q, dialogue: "Whatever you like.")  # e.g. an LLM user
+    asked, _done = run_episode(_Asker([question]), env).steps
+    assert asked.reply == "Whatever you like." and pref.id in asked.targets
