@@ -14,6 +14,7 @@ what they have found (`View.seen`). Each emits one action per `act`; `harness.ep
 from __future__ import annotations
 
 import re
+from abc import abstractmethod
 
 from ..compiler import ast as A
 from ..compiler.lint import applies_to
@@ -34,9 +35,9 @@ class ScriptedPolicy(Policy):
         self.domain = domain
         self._runs: dict = {}
 
+    @abstractmethod
     def plan(self, view: View):
         """The action generator of a new episode."""
-        raise NotImplementedError
 
     def act(self, view: View) -> Decision:
         """The plan's next action (Declare Done once the plan is exhausted)."""

@@ -10,6 +10,7 @@ are rendered, counted and truncated the same way for a local model and a served 
 
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
 
 BACKENDS = ("transformers", "openai")
@@ -56,19 +57,19 @@ class Scored:
         return sum(math.exp(x) for x in self.logprobs) / len(self.logprobs) if self.logprobs else 0.0
 
 
-class Backend:
+class Backend(ABC):
     """A language model that generates under grammars and scores continuations."""
 
     name = "backend"
     tokenizer = None
 
+    @abstractmethod
     def generate(self, requests) -> list:
         """One `Completion` per `Request`, in order (batched where the backend can)."""
-        raise NotImplementedError
 
+    @abstractmethod
     def score(self, prompt: str, continuations) -> list:
         """One `Scored` per continuation of the rendered `prompt`."""
-        raise NotImplementedError
 
     def config(self) -> dict:
         """What identifies the model (recorded with each episode)."""
