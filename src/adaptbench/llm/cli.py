@@ -16,6 +16,9 @@ def add_rollout_options(p) -> None:
     g.add_argument("--backend", choices=["transformers", "openai"], default="transformers", help="default transformers")
     g.add_argument("--url", default="http://localhost:8000/v1", help="OpenAI-compatible server (--backend openai)")
     g.add_argument("--tokenizer", help="local tokenizer directory for --backend openai (default: --model)")
+    g.add_argument("--server", choices=["vllm", "transformers-serve"], default="vllm",
+                   help="what serves --url (--backend openai): vllm (token-id prompts, grammars enforced) or "
+                   "transformers-serve (text prompts, grammars checked and retried locally); default vllm")
     g.add_argument("--device", default="cpu", help="cpu, cuda, cuda:1 ... (default cpu)")
     g.add_argument("--dtype", default="auto", choices=["auto", "float32", "bfloat16", "float16"])
     g.add_argument("--batch", type=int, default=16, help="episodes advanced together (default 16)")
@@ -43,7 +46,9 @@ def _backend(args, model: str):
         _fail(f"{exc}; install the models extra: pip install torch==2.13.0 && pip install -e '.[models]'")
     try:
         if args.backend == "openai":
-            return make_backend("openai", url=args.url, model=model, tokenizer=args.tokenizer or model)
+            plain = getattr(args, "server", "vllm") == "transformers-serve"
+            return make_backend("openai", url=args.url, model=model, tokenizer=args.tokenizer or model,
+                                text_prompts=plain, grammar_field=not plain)
         return make_backend("transformers", model=model, device=args.device, dtype=args.dtype)
     except ImportError as exc:
         _fail(f"{exc}; install the models extra: pip install torch==2.13.0 && pip install -e '.[models]'")

@@ -9,6 +9,11 @@ backend would. The grammar goes the way vLLM's structured outputs take it
 (the simulator's parser) and, if the server did not enforce the grammar, asked once more (sampled at
 temperature 0.7). `score` reads prompt log-probabilities (`echo` + `logprobs`, or vLLM's
 `prompt_logprobs`). Requests of one batch are sent concurrently. Standard library only (urllib).
+
+`transformers serve` (transformers 5.x) takes only text prompts and refuses the grammar field (HTTP
+422): `OpenAIBackend(..., text_prompts=True, grammar_field=False)` sends the rendered text and leaves
+the grammar to the validator and the retry; it offers no prompt log-probabilities, so `score` raises
+`ServerError` there (docs/llm.md).
 """
 
 from __future__ import annotations
@@ -32,10 +37,12 @@ class OpenAIBackend(Backend):
     name = "openai"
 
     def __init__(self, url: str, model: str, tokenizer: str, api_key: str | None = None, timeout: float = 120.0,
-                 concurrency: int = 16, temperature: float = 0.0):
+                 concurrency: int = 16, temperature: float = 0.0, text_prompts: bool = False,
+                 grammar_field: bool = True):
         from transformers import AutoTokenizer
 
         self.url, self.model, self.api_key = url.rstrip("/"), model, api_key
+        self.text_prompts, self.grammar_field = text_prompts, grammar_field
         self.timeout, self.concurrency, self.temperature = timeout, concurrency, temperature
         self.tokenizer = AutoTokenizer.from_pretrained(tokenizer)
         self.retries = 0  # completions that failed validation and were asked again
@@ -61,10 +68,11 @@ class OpenAIBackend(Backend):
         return self.tokenizer(text, add_special_tokens=False)["input_ids"]
 
     def _complete(self, ids: list, req, temperature: float) -> tuple:
-        body = {"model": self.model, "prompt": ids, "max_tokens": req.max_tokens, "temperature": temperature}
+        prompt = req.prompt if self.text_prompts else ids
+        body = {"model": self.model, "prompt": prompt, "max_tokens": req.max_tokens, "temperature": temperature}
         if req.stop:
             body["stop"] = list(req.stop)
-        if req.grammar is not None:
+        if req.grammar is not None and self.grammar_field:
             body["structured_outputs"] = {"grammar": req.grammar}
         out = self._post("/completions", body)
         choice = out["choices"][0]
@@ -93,7 +101,7 @@ class OpenAIBackend(Backend):
 
     def _score_one(self, p: list, cont: str) -> Scored:
         c = self.encode(cont)
-        body = {"model": self.model, "prompt": p + c, "max_tokens": 1, "temperature": 0.0, "echo": True,
+        body = {"model": self.model, "prompt": self.tokenizer.decode(p + c) if self.text_prompts else p + c, "max_tokens": 1, "temperature": 0.0, "echo": True,
                 "logprobs": 0, "prompt_logprobs": 0}
         choice = self._post("/completions", body)["choices"][0]
         return Scored(cont, _prompt_logprobs(choice, p + c)[len(p):])
