@@ -58,13 +58,9 @@ def _cmd_scene(args) -> int:
     return 0
 
 
-def _read_actions(path: str) -> list:
-    return read_lines(path)
-
-
 def _cmd_replay(args) -> int:
     domain = _domain(args)
-    actions = _read_actions(args.actions)
+    actions = read_lines(args.actions)
     env = _env(args, domain)
     env.reset()
     steps = []

@@ -5,8 +5,8 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from .cli_episode import _domain, _read_actions, add_spec_option
-from .cli_types import seed
+from .cli_episode import _domain, add_spec_option
+from .cli_types import read_lines, seed
 
 
 def _expected(args):
@@ -44,7 +44,7 @@ def _replay(args, domain):
     env = Env(domain, args.task, seed=None if args.full_scene else args.seed, full_scene=args.full_scene)
     env.reset()
     if args.after:
-        for text in _read_actions(args.after):
+        for text in read_lines(args.after):
             if env.done:
                 break
             env.step(text)
