@@ -15,6 +15,11 @@ from __future__ import annotations
 from pathlib import Path
 
 SPECIALS = ("<|pad|>", "<|bos|>", "<|end|>", "<|system|>", "<|user|>", "<|assistant|>")
+# Pre-tokens: a word (or a run of punctuation) with the one space after it, or other whitespace. The space
+# goes with the word before it, so the prompt's prefix "Action: " ends on a token boundary and an action
+# is tokenized the same whether generated after it or read back in the history (a GPT-2 style split,
+# "Action:" + " Look", would tokenize the history differently from what the model generates).
+WORDS = r"\w+ ?|[^\w\s]+ ?|\s+"
 CHAT_TEMPLATE = ("{{ bos_token }}{% for m in messages %}"
                  "{% if m['role'] not in ['system', 'user', 'assistant'] %}"
                  "{{ raise_exception('unknown role ' + m['role']) }}{% endif %}"
@@ -54,11 +59,13 @@ def corpus(domain) -> list:
 def train_tokenizer(domain, vocab_size: int = 4096):
     """A byte-level BPE tokenizer trained on `corpus(domain)`, wrapped for transformers with the chat
     template and special tokens."""
-    from tokenizers import Tokenizer, decoders, models, pre_tokenizers, trainers
+    from tokenizers import Regex, Tokenizer, decoders, models, pre_tokenizers, trainers
     from transformers import PreTrainedTokenizerFast
 
     tok = Tokenizer(models.BPE())
-    tok.pre_tokenizer = pre_tokenizers.ByteLevel(add_prefix_space=False)
+    tok.pre_tokenizer = pre_tokenizers.Sequence([
+        pre_tokenizers.Split(Regex(WORDS), behavior="isolated"),
+        pre_tokenizers.ByteLevel(add_prefix_space=False, use_regex=False)])
     tok.decoder = decoders.ByteLevel()
     trainer = trainers.BpeTrainer(vocab_size=vocab_size, special_tokens=list(SPECIALS), show_progress=False,
                                   initial_alphabet=pre_tokenizers.ByteLevel.alphabet())
