@@ -182,8 +182,8 @@ def add_commands(sub) -> None:
     q.add_argument("--out", required=True, help="directory to write the model into")
     q.add_argument("--seed", type=int, default=0)
     q.add_argument("--vocab", type=int, default=4096, help="tokenizer vocabulary size (default 4096)")
-    q.add_argument("--hidden", type=int, default=64)
-    q.add_argument("--layers", type=int, default=2)
+    q.add_argument("--hidden", type=int, default=64, help="hidden size (default 64: the test model)")
+    q.add_argument("--layers", type=int, default=2, help="transformer layers (default 2)")
     q.set_defaults(func=_cmd_model_init)
     q = msub.add_parser("pretrain", help="fine-tune a model on recorded trajectories rendered with the planner prompt",
                         description="Replays each episode of the results files (oracle or teacher runs) to rebuild "
@@ -193,9 +193,11 @@ def add_commands(sub) -> None:
     q.add_argument("--model", required=True, help="model directory to start from (e.g. from adapt model init)")
     q.add_argument("--data", required=True, nargs="+", help="results files or globs, e.g. runs/oracle*.jsonl")
     q.add_argument("--out", required=True, help="directory to save the fine-tuned model into")
-    q.add_argument("--steps", type=int, default=2000, help="updates, one example each (default 2000)")
+    q.add_argument("--steps", type=int, default=2000, help="updates, one sequence each: an episode's steps packed, or "
+                   "one step whose prompt is truncated to --budget (default 2000)")
     q.add_argument("--lr", type=float, default=3e-3)
-    q.add_argument("--budget", type=int, help="prompt token budget (oldest steps dropped first)")
+    q.add_argument("--budget", type=int, help="prompt token budget (oldest steps dropped first; default none: "
+                   "whole episodes, as `adapt rollout` prompts the tiny model by default)")
     q.add_argument("--seed", type=int, default=0)
     q.add_argument("--quiet", action="store_true")
     q.set_defaults(func=_cmd_model_pretrain)

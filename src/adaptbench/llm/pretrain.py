@@ -2,9 +2,12 @@
 planner acts sensibly: `adapt model pretrain --model DIR --data runs/oracle.jsonl --out DIR`.
 
 Each record is replayed in the simulator (same scene, the offline user) to rebuild the view the agent
-had at every step; the example is the rendered planner prompt (`fit` to the token budget) and the
-recorded action followed by EOS. A record whose replay does not reproduce its observations (another
-spec version) is skipped. Loss on the action tokens only; plain AdamW, one sequence per step.
+had at every step; the target is the recorded action followed by EOS after the rendered planner prompt
+(`fit` to the token budget). Each step's untruncated prompt is a prefix of the next one's, so the steps
+that fit the budget are packed into one sequence per episode (with no budget: the whole episode) and
+one forward pass trains them all; a step whose prompt has to drop old steps is a sequence of its own.
+A record whose replay does not reproduce its observations (another spec version) is skipped. Loss on
+the action tokens only; plain AdamW, one sequence per update.
 """
 
 from __future__ import annotations
