@@ -91,7 +91,7 @@ def run(model: str | None, quick: bool) -> list:
     backend = TransformersBackend(model, batch_size=16)
     n = 8 if quick else 16
     con, unc = decode_speed(domain, backend, n)
-    batched, single, prep, other = episodes_per_minute(domain, backend, n, 3 if quick else 5)
+    batched, single, prep, other = episodes_per_minute(domain, backend, n, 5 if quick else 20)
     return [
         (f"llm: constrained tokens/s (batch {n})", con, "tok/s", "", ""),
         (f"llm: unconstrained tokens/s (batch {n})", unc, "tok/s", "", ""),
