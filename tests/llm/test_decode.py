@@ -128,3 +128,31 @@ def test_sampling_is_seeded(domain, tiny):
     reqs = [Request(p, None, (), 16) for p in _prompts(domain, TransformersBackend(str(tiny)), 2)]
     runs = [[c.text for c in _sharp(tiny, temperature=1.0, seed=s).generate(reqs)] for s in (0, 0, 1)]
     assert runs[0] == runs[1] != runs[2]
+
+
+def test_rows_of_several_sessions_read_their_new_tokens_together_and_generate_the_same(domain, tiny):
+    from adaptbench.llm import decode
+    from adaptbench.llm.backend import Request
+
+    cached, fresh = _sharp(tiny), _sharp(tiny, sessions=0)
+    cached.prefill_together = True  # the GPU's way, checked here on the CPU
+    g = _grammar(domain)
+    texts = _prompts(domain, cached, 3)
+    calls = []
+    many = decode.prefill_many
+
+    def spy(*a, **kw):
+        calls.append(len(a[1]))
+        return many(*a, **kw)
+
+    decode.prefill_many = spy
+    try:
+        for step in range(3):
+            reqs = [Request(t, g if i != 1 else None, (), 10 + 2 * i, session=f"s{i}") for i, t in enumerate(texts)]
+            a, b = cached.generate(reqs), fresh.generate(reqs)
+            assert [c.text for c in a] == [c.text for c in b]
+            turn = f"<|end|>\n<|user|>\nObservation: step {step}{'.' * step}<|end|>\n<|assistant|>\n"
+            texts = [t + c.text + turn * (1 + i) for i, (t, c) in enumerate(zip(texts, a, strict=True))]
+    finally:
+        decode.prefill_many = many
+    assert calls == [3, 3]  # steps 2 and 3: the three rows' new tokens in one forward pass

@@ -103,24 +103,75 @@ def _cache(layers: list, config) -> DynamicCache:
     return DynamicCache(ddp_cache_data=layers, config=config)
 
 
-def prefill(model, row: Row, sessions: Sessions):
-    """Read the row's prompt after the prefix its session has cached; returns (last logits [V], layers)."""
+SHORT = 256  # rows with a cache and at most this many new tokens read them in one batched pass
+
+
+def reuse(row: Row, sessions: Sessions) -> list | None:
+    """Take the row's session cache and keep the prefix it shares with the row's prompt (at least the
+    prompt's last token is left to read, for the first new token's logits); sets `row.reused`."""
     hit = sessions.take(row.session)
-    start, layers = 0, None
-    if hit is not None:
-        tokens, cached = hit
-        # keep at least the prompt's last token to read, so that there are logits for the first new token
-        start = min(common_prefix(tokens, row.prompt), len(row.prompt) - 1)
-        if start > 0:
-            layers = [(k[:, :, :start], v[:, :, :start]) for k, v in cached]
-        else:
-            start = 0
+    row.reused = 0
+    if hit is None:
+        return None
+    tokens, cached = hit
+    start = min(common_prefix(tokens, row.prompt), len(row.prompt) - 1)
+    if start <= 0:
+        return None
     row.reused = start
+    return [(k[:, :, :start], v[:, :, :start]) for k, v in cached]
+
+
+def prefill(model, row: Row, layers: list | None):
+    """Read the row's prompt after its `row.reused` cached tokens; returns (last logits [V], layers)."""
+    start = row.reused
     ids = torch.tensor([row.prompt[start:]], dtype=torch.long, device=model.device)
     pos = torch.arange(start, len(row.prompt), device=model.device).unsqueeze(0)
     cache = _cache(layers, model.config) if layers else DynamicCache(config=model.config)
     out = model(input_ids=ids, position_ids=pos, past_key_values=cache, use_cache=True, logits_to_keep=1)
     return out.logits[0, -1].float(), _layers(out.past_key_values)
+
+
+def prefill_many(model, rows: list, layers: list, pad_id: int = 0) -> list:
+    """Read several cached rows' new tokens in one forward pass: caches left-padded to one width,
+    new tokens right-aligned after them (padding between, masked), each at its own positions. Returns
+    (last logits [V], layers) per row."""
+    cached = [r.reused for r in rows]
+    new = [len(r.prompt) - r.reused for r in rows]
+    width, room = max(cached), max(new)
+    cache, mask = _stack(model, layers, cached, room)
+    ids = torch.full((len(rows), room), pad_id, dtype=torch.long)
+    pos = torch.zeros((len(rows), room), dtype=torch.long)
+    tail = torch.zeros((len(rows), room), dtype=torch.long)
+    for i, r in enumerate(rows):
+        ids[i, room - new[i]:] = torch.tensor(r.prompt[r.reused:], dtype=torch.long)
+        pos[i, room - new[i]:] = torch.arange(cached[i], len(r.prompt))
+        tail[i, room - new[i]:] = 1
+    dev = model.device
+    out = model(input_ids=ids.to(dev), attention_mask=torch.cat([mask, tail.to(mask.device)], dim=1),
+                position_ids=pos.to(dev), past_key_values=cache, use_cache=True,
+                cache_position=torch.arange(width, width + room, device=dev), logits_to_keep=1)
+    logits = out.logits[:, -1].float()
+    return [(logits[i], [layer.row_parts(i, cached[i], width, new[i]) for layer in cache.layers])
+            for i in range(len(rows))]
+
+
+def prefill_rows(model, rows: list, sessions: Sessions, pad_id: int = 0, together: bool = True) -> list:
+    """(last logits, layers) per row: with `together`, rows with a cache and a short new part in one
+    pass (`prefill_many`), the others (a first step: the whole prompt) one by one. On a GPU one pass
+    saves a forward pass per row; on a CPU the padded, masked pass costs more than the rows' own
+    (measured: 97 ms for 16 rows against 16 x 5.3 ms), so the backend turns it off there."""
+    layers = [reuse(r, sessions) for r in rows]
+    short = [i for i, r in enumerate(rows)
+             if together and layers[i] is not None and len(r.prompt) - r.reused <= SHORT]
+    out: list = [None] * len(rows)
+    if len(short) > 1:
+        for i, res in zip(short, prefill_many(model, [rows[i] for i in short], [layers[i] for i in short], pad_id),
+                          strict=True):
+            out[i] = res
+    for i, r in enumerate(rows):
+        if out[i] is None:
+            out[i] = prefill(model, r, layers[i])
+    return out
 
 
 class BufferLayer(DynamicLayer):
@@ -160,6 +211,13 @@ class BufferLayer(DynamicLayer):
         self._k, self._v = self._k[rows], self._v[rows]
         self._views()
 
+    def row_parts(self, k: int, cached: int, width: int, new: int) -> tuple:
+        """Row k after a batched prefill: its `cached` positions before `width` and its `new` last ones."""
+        keys = torch.cat([self.keys[k:k + 1, :, width - cached:width], self.keys[k:k + 1, :, self.n - new:]], dim=2)
+        values = torch.cat([self.values[k:k + 1, :, width - cached:width], self.values[k:k + 1, :, self.n - new:]],
+                           dim=2)
+        return keys, values
+
     def row(self, k: int, n: int) -> tuple:
         """Row k's last n cached positions, as a batch of one (a copy)."""
         return self.keys[k:k + 1, :, self.n - n:].clone(), self.values[k:k + 1, :, self.n - n:].clone()
@@ -187,13 +245,13 @@ def _stack(model, rows_layers: list, lengths: list, room: int) -> tuple:
     return cache, mask
 
 
-def decode(model, rows: list, sessions: Sessions, picker, stopped) -> None:
+def decode(model, rows: list, sessions: Sessions, picker, stopped, pad_id: int = 0, together: bool = True) -> None:
     """Generate every row's tokens in place (`row.tokens`). `picker.pick(logits [B, V], active row
     indices, step) -> token ids [B]` masks and picks the next token of each active row (the grammar
     acts there) and `picker.advance(active, tokens)` hears which tokens the rows still running took;
     `stopped(row_index, row) -> bool` says a row is over after its newest token (EOS, stop string,
-    limit). Sessions get their rows' caches back."""
-    first, layers = zip(*(prefill(model, row, sessions) for row in rows), strict=True)
+    limit). Sessions get their rows' caches back. `together`: see `prefill_rows`."""
+    first, layers = zip(*prefill_rows(model, rows, sessions, pad_id, together), strict=True)
     lengths = [len(r.prompt) for r in rows]
     active = list(range(len(rows)))
     logits = torch.stack(first)

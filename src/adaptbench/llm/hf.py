@@ -85,6 +85,7 @@ class TransformersBackend(Backend):
         self.pad_id = self.tokenizer.pad_token_id if self.tokenizer.pad_token_id is not None \
             else self.tokenizer.eos_token_id
         self.loop = loop_supported(self.model)
+        self.prefill_together = device != "cpu"  # see decode.prefill_rows
         self.sessions = Sessions(2 * batch_size if sessions is None else sessions)
         self._generator = torch.Generator(device=device).manual_seed(seed)
 
@@ -120,7 +121,8 @@ class TransformersBackend(Backend):
             return self._batch_hf(reqs, prompts, proc, t0)
         rows = [Row(p, r.max_tokens, tuple(r.stop), getattr(r, "session", None)) for p, r in zip(prompts, reqs, strict=True)]
         picker = Picker(proc, self.temperature, self._generator)
-        decode(self.model, rows, self.sessions, picker, self._stopper(rows))
+        decode(self.model, rows, self.sessions, picker, self._stopper(rows), self.pad_id,
+               self.prefill_together)
         seconds = time.perf_counter() - t0
         return [self._completion(r, row.tokens, len(row.prompt), proc, i, seconds, len(reqs), row.reused)
                 for i, (r, row) in enumerate(zip(reqs, rows, strict=True))]
