@@ -156,3 +156,27 @@ def test_rows_of_several_sessions_read_their_new_tokens_together_and_generate_th
     finally:
         decode.prefill_many = many
     assert calls == [3, 3]  # steps 2 and 3: the three rows' new tokens in one forward pass
+
+
+def test_piecewise_encoding_equals_whole_encoding(domain, backend):
+    from adaptbench.llm.chat import encode
+
+    tok = backend.tokenizer
+    for text in _prompts(domain, backend, 4):
+        assert encode(tok, text) == tok(text, add_special_tokens=False)["input_ids"]
+    assert tok.__dict__["_adapt_encoder"]["pieces"] is not None  # the tiny tokenizer's pieces add up
+
+
+def test_a_tokenizer_whose_pieces_do_not_add_up_is_encoded_whole():
+    from adaptbench.llm.chat import encode
+
+    class PrefixingTokenizer:  # adds a "prefix space" token to every call, like some SentencePiece set-ups
+        added_tokens_encoder = {"<s>": 0}
+
+        def __call__(self, text, add_special_tokens=False):
+            return {"input_ids": [9] + [ord(c) for c in text.replace("<s>", "\0")]}
+
+    tok = PrefixingTokenizer()
+    text = "hello<s>world"
+    assert encode(tok, text) == tok(text)["input_ids"]
+    assert tok.__dict__["_adapt_encoder"]["pieces"] is None
