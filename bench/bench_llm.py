@@ -1,5 +1,6 @@
 """Language-model side on the tiny model (CPU): constrained versus unconstrained decoding speed, batched
-versus one-at-a-time rollouts, and the share of a step spent outside the model.
+versus one-at-a-time rollouts, the share of a step spent outside the model, and LLM-user answers per
+second batched (one generate for every episode that asks in a round) versus one at a time.
 
     python bench/bench_llm.py [--model DIR] [--quick]      # builds the tiny model when --model is absent
 
@@ -79,6 +80,38 @@ def episodes_per_minute(domain, backend, n: int, steps: int) -> tuple:
     return out[0], out[1], prep / model, other / model
 
 
+def _ask_rollout(domain, backend, jobs, width: int, steps: int) -> tuple:
+    """One rollout of the scripted always-ask agent with LLM users: (answers, seconds, replies by episode)."""
+    from adaptbench.agents.scripted import make_policy
+    from adaptbench.llm.rollout import run_batched
+    from adaptbench.llm.user import LLMUser
+
+    users = []
+
+    def user(d, p, t):
+        users.append(LLMUser(backend, d, p, t))
+        return users[-1]
+
+    t = time.perf_counter()
+    recs = list(run_batched(jobs, domain, make_policy("always-ask", domain), user, batch=width, steps=steps))
+    wall = time.perf_counter() - t
+    replies = sorted((r["persona"], r["task"], r["seed"], tuple(s["reply"] for s in r["steps"])) for r in recs)
+    return sum(len(u.calls) for u in users), wall, replies
+
+
+def user_answers_per_second(domain, backend, n: int, steps: int) -> tuple:
+    """LLM-user answers per second (over the rollout's wall time) with the scripted always-ask agent on n
+    episodes (2 personas x the tasks, seeds 0..n-1, `steps` steps each; it asks its questions first, so
+    the episodes ask in the same rounds): (batched, one at a time, answers, whether the replies match)."""
+    from adaptbench.harness.rollout import Job
+
+    personas, tasks = list(domain.persona)[:2], list(domain.task)
+    jobs = [Job("always-ask", personas[i % 2], tasks[i % len(tasks)], i) for i in range(n)]
+    answers, wall_b, replies_b = _ask_rollout(domain, backend, jobs, n, steps)
+    answers_1, wall_1, replies_1 = _ask_rollout(domain, backend, jobs, 1, steps)
+    return answers / wall_b, answers_1 / wall_1, answers, replies_b == replies_1
+
+
 def run(model: str | None, quick: bool) -> list:
     """Benchmark rows."""
     from adaptbench.compiler import load_domain
@@ -92,6 +125,7 @@ def run(model: str | None, quick: bool) -> list:
     n = 8 if quick else 16
     con, unc = decode_speed(domain, backend, n)
     batched, single, prep, other = episodes_per_minute(domain, backend, n, 3 if quick else 5)
+    ub, us, answers, same = user_answers_per_second(domain, backend, n, 3 if quick else 6)
     return [
         (f"llm: constrained tokens/s (batch {n})", con, "tok/s", "", ""),
         (f"llm: unconstrained tokens/s (batch {n})", unc, "tok/s", "", ""),
@@ -101,6 +135,9 @@ def run(model: str | None, quick: bool) -> list:
         ("llm: batched / one at a time", batched / single, "ratio", ">= 4", ""),
         ("llm: prompt+grammar time / model time", prep, "share", "< 0.05", ""),
         ("llm: all non-model time / model time", other, "share", "< 0.05", "(simulator, user, prompts, grammar)"),
+        (f"llm: user answers/s, {n} batched", ub, "answers/s", "", f"({answers} answers, scripted always-ask)"),
+        ("llm: user answers/s, one at a time", us, "answers/s", "", "same replies" if same else "REPLIES DIFFER"),
+        ("llm: user batched / one at a time", ub / us, "ratio", "", ""),
     ]
 
 
