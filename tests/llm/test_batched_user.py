@@ -167,3 +167,37 @@ def test_llm_user_batched_answers_equal_one_at_a_time(domain, sharp):
     assert batched.calls == [len(EPISODES)] * asks  # one generate per round that asks, every episode in it
     assert single.calls == [1] * (asks * len(EPISODES))
     assert all(len(u.calls) == asks and all(c[3] == len(EPISODES) for c in u.calls) for u in users)
+
+
+class Failing(Batching):
+    """A batching user whose batched call raises."""
+
+    @staticmethod
+    def prepare_answers(asks):
+        """Fail."""
+        raise RuntimeError("server down")
+
+
+def test_a_failing_batch_falls_back_to_answers_in_the_step_when_catching(domain):
+    envs = [(f"e{i}", Env(domain, "eggs", "juan", i, user=Failing())) for i in range(2)]
+    eps = list(iter_batch(Script(), envs, catch=True))
+    assert all(ep.error is None and ep.steps[0].reply == 'fresh "How do you like your eggs?"' for ep in eps)
+    envs = [(f"e{i}", Env(domain, "eggs", "juan", i, user=Failing())) for i in range(2)]
+    with pytest.raises(RuntimeError, match="server down"):
+        list(iter_batch(Script(), envs))
+
+
+def test_llm_user_uses_a_prepared_answer_only_for_the_same_prompt(domain, backend):
+    from adaptbench.llm.user import LLMUser
+
+    counting = Counting(backend)
+    user = LLMUser(counting, domain, domain.persona["juan"], domain.task["eggs"], max_tokens=4)
+    env = Env(domain, "eggs", "juan", 0, user=user)
+    user.bind(env)
+    prepare_answers([(env, 'Ask "Eggs?"')])
+    env.step("Look for eggs")  # the state the user reads changed: the prepared answer no longer applies
+    env.step('Ask "Eggs?"')
+    assert counting.calls == [1, 1] and user._prepared == {}
+    prepare_answers([(env, 'Ask "Milk?"')])
+    env.step('Ask "Milk?"')
+    assert counting.calls == [1, 1, 1] and [c[3] for c in user.calls] == [1, 1]

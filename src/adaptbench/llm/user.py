@@ -103,8 +103,8 @@ class LLMUser:
     def prepare_answers(asks) -> None:
         """Answer several users' questions in one `generate` call. `asks` is [(user, question, dialogue),
         ...] for users sharing a backend, each bound to the episode about to ask, in the state the step
-        will see; each answer is kept until its user's `answer` renders the same prompt (answers prepared
-        earlier and never asked are dropped)."""
+        will see; each answer is kept for its user's next `answer`, used only if that renders the same
+        prompt, and dropped after it."""
         for user, _, _ in asks:
             user._prepared = {}
         texts = [user._rendered(q, d) for user, q, d in asks]
@@ -116,6 +116,7 @@ class LLMUser:
         """One line, first person (the prepared answer when there is one for exactly this prompt)."""
         text = self._rendered(question, dialogue)
         out, batch = self._prepared.pop(text, (None, 1))
+        self._prepared.clear()  # an answer prepared for another prompt is stale once the user has answered
         if out is None:
             out = self.backend.generate([self._request(text)])[0]
         self.calls.append((out.prompt_tokens, out.tokens, out.stats.get("seconds"), batch))
