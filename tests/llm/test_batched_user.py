@@ -105,10 +105,12 @@ def test_harness_groups_questions_by_key_and_leaves_other_users_alone(domain):
     assert env.step('Ask "Milk?"').reply == 'fresh "Milk?"'
 
 
-def _rollout(domain, backend, width):
+def _rollout(domain, backend, width, sessions=True):
     from adaptbench.llm.user import LLMUser
 
     users = [LLMUser(backend, domain, domain.persona[p], domain.task[t], max_tokens=12) for p, t, _ in EPISODES]
+    for user in users:
+        user.session = user.session if sessions else None
     envs = []
     for (p, t, seed), user in zip(EPISODES, users, strict=True):
         env = Env(domain, t, p, seed, user=user)
@@ -122,12 +124,14 @@ class Counting:
     """A backend wrapper that counts generate calls and their rows."""
 
     def __init__(self, backend):
-        self.backend, self.tokenizer, self.calls = backend, backend.tokenizer, []
+        self.backend, self.tokenizer, self.calls, self.cached = backend, backend.tokenizer, [], []
 
     def generate(self, requests):
         """The wrapped backend's completions."""
         self.calls.append(len(requests))
-        return self.backend.generate(requests)
+        outs = self.backend.generate(requests)
+        self.cached += [o.stats.get("cached_tokens", 0) for o in outs]
+        return outs
 
     def config(self):
         """The wrapped backend's configuration."""
@@ -160,11 +164,13 @@ def test_llm_user_batched_answers_equal_one_at_a_time(domain, sharp):
     batched, single = Counting(sharp), Counting(sharp)
     together, users = _rollout(domain, batched, width=len(EPISODES))
     alone, _ = _rollout(domain, single, width=1)
-    assert together == alone
+    fresh, _ = _rollout(domain, sharp, width=1, sessions=False)  # every prompt read whole, no cache kept
+    assert together == alone == fresh
     assert len({r for rows in together for r in rows if r}) > len(EPISODES)  # answers depend on the prompt
     asks = sum(1 for r in together[0] if r)
     assert asks == 4 and all(sum(1 for r in rows if r) == asks for rows in together)
     assert batched.calls == [len(EPISODES)] * asks  # one generate per round that asks, every episode in it
+    assert sum(batched.cached[len(EPISODES):]) > 0  # later answers read the opening from the user's cache
     assert single.calls == [1] * (asks * len(EPISODES))
     assert all(len(u.calls) == asks and all(c[3] == len(EPISODES) for c in u.calls) for u in users)
 

@@ -56,6 +56,9 @@ class LLMUser:
         self.env, self.max_tokens, self.budget = env, max_tokens, budget
         self.calls: list = []  # per answer: (prompt tokens, generated tokens, seconds of its generate call, answers in it)
         self._prepared: dict = {}  # rendered prompt -> (Completion, answers in its call), from `prepare_answers`
+        # successive prompts share their opening (persona, task, preferences, the unchanged part of the
+        # house): a backend may keep this user's key/value cache between answers
+        self.session = f"user/{getattr(persona, 'id', 'persona')}/{getattr(task, 'id', 'task')}/{id(self):x}"
 
     def bind(self, env) -> LLMUser:
         """Read the house state from `env` (the episode the user belongs to)."""
@@ -90,7 +93,7 @@ class LLMUser:
         return fit(self.backend.tokenizer, build, self.budget)
 
     def _request(self, text: str) -> Request:
-        return Request(text, LINE_GRAMMAR, ("\n",), self.max_tokens, _one_line)
+        return Request(text, LINE_GRAMMAR, ("\n",), self.max_tokens, _one_line, session=self.session)
 
     def _rendered(self, question: str, dialogue: tuple) -> str:
         return render(self.backend.tokenizer, self.prompt(question, dialogue))
