@@ -1,7 +1,8 @@
 """Language-model side on the tiny model (CPU): constrained versus unconstrained decoding speed, batched
 versus one-at-a-time rollouts (16 planner episodes of 20 steps; one at a time both through our loop
-and the plain way, `model.generate` reading every step's prompt whole), and the share of a step spent
-outside the model.
+and the plain way, `model.generate` reading every step's prompt whole), the share of a step spent
+outside the model, and LLM-user answers per second batched (one generate for every episode that asks
+in a round) versus one at a time.
 
     python bench/bench_llm.py [--model DIR] [--quick]      # builds the tiny model when --model is absent
 
@@ -92,6 +93,58 @@ def episodes_per_minute(domain, backend, plain, n: int, steps: int, rounds: int 
     return best
 
 
+class _InStep:
+    """An LLM user that answers inside its step only (no `prepare_answers`): the unbatched path."""
+
+    def __init__(self, user):
+        self.user, self.calls = user, user.calls
+
+    def bind(self, env):
+        """Bind the wrapped user."""
+        self.user.bind(env)
+        return self
+
+    def answer(self, question, dialogue=()):
+        """The wrapped user's answer, computed now."""
+        return self.user.answer(question, dialogue)
+
+
+def _ask_rollout(domain, backend, jobs, width: int, steps: int, batch_users: bool = True) -> tuple:
+    """One rollout of the scripted always-ask agent with LLM users: (answers, seconds, replies by episode)."""
+    from adaptbench.agents.scripted import make_policy
+    from adaptbench.llm.rollout import run_batched
+    from adaptbench.llm.user import LLMUser
+
+    users = []
+
+    def user(d, p, t):
+        users.append(LLMUser(backend, d, p, t) if batch_users else _InStep(LLMUser(backend, d, p, t)))
+        return users[-1]
+
+    t = time.perf_counter()
+    recs = list(run_batched(jobs, domain, make_policy("always-ask", domain), user, batch=width, steps=steps))
+    wall = time.perf_counter() - t
+    replies = sorted((r["persona"], r["task"], r["seed"], tuple(s["reply"] for s in r["steps"])) for r in recs)
+    return sum(len(u.calls) for u in users), wall, replies
+
+
+def user_answers_per_second(domain, backend, n: int, steps: int) -> tuple:
+    """LLM-user answers per second (over the rollout's wall time) with the scripted always-ask agent on n
+    episodes (2 personas x the tasks, seeds 0..n-1, `steps` steps each; it asks its questions first, so
+    the episodes ask in the same rounds): {batched, in_step (n episodes together, each user answering in
+    its step), single (one episode at a time)} answers/s, the answers, and whether the replies match."""
+    from adaptbench.harness.rollout import Job
+
+    personas, tasks = list(domain.persona)[:2], list(domain.task)
+    jobs = [Job("always-ask", personas[i % 2], tasks[i % len(tasks)], i) for i in range(n)]
+    out, replies = {}, []
+    for name, width, batch_users in (("batched", n, True), ("in_step", n, False), ("single", 1, True)):
+        answers, wall, rep = _ask_rollout(domain, backend, jobs, width, steps, batch_users)
+        out[name] = answers / wall
+        replies.append(rep)
+    return out, answers, all(r == replies[0] for r in replies)
+
+
 def run(model: str | None, quick: bool) -> list:
     """Benchmark rows."""
     from adaptbench.compiler import load_domain
@@ -107,6 +160,7 @@ def run(model: str | None, quick: bool) -> list:
     n, steps = (8, 5) if quick else (16, 20)
     con, unc = decode_speed(domain, backend, n, 1 if quick else 3)
     ep = episodes_per_minute(domain, backend, plain, n, steps, 1 if quick else 2)
+    ua, answers, same = user_answers_per_second(domain, backend, n, 3 if quick else 6)
     return [
         (f"llm: constrained tokens/s (batch {n})", con, "tok/s", "", ""),
         (f"llm: unconstrained tokens/s (batch {n})", unc, "tok/s", "", ""),
@@ -118,6 +172,12 @@ def run(model: str | None, quick: bool) -> list:
         ("llm: batched / model.generate one at a time", ep["batched"] / ep["plain"], "ratio", "", ""),
         ("llm: prompt+grammar time / model time", ep["prep"], "share", "< 0.05", ""),
         ("llm: all non-model time / model time", ep["other"], "share", "< 0.05", "(simulator, user, prompts, grammar)"),
+        (f"llm: user answers/s, {n} batched", ua["batched"], "answers/s", "", f"({answers} answers, scripted always-ask)"),
+        (f"llm: user answers/s, {n} episodes, answered in the step", ua["in_step"], "answers/s", "", ""),
+        ("llm: user answers/s, one episode at a time", ua["single"], "answers/s", "",
+         "same replies in all three" if same else "REPLIES DIFFER"),
+        ("llm: user batched / one episode at a time", ua["batched"] / ua["single"], "ratio", "", ""),
+        ("llm: user batched / answered in the step", ua["batched"] / ua["in_step"], "ratio", "", ""),
     ]
 
 

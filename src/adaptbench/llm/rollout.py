@@ -1,8 +1,10 @@
 """Batched rollouts of language-model agents, on the harness's loop (`harness.episode.iter_batch`): up
 to `batch` episodes advance together, one batched generation (`LLMPolicy.act_batch`) for every episode
-awaiting an action, simulator steps (and user answers) in between; a finished episode's slot is refilled
-from the queue. Records are `EpisodeRecord`s with each step's completion and statistics, appended to the
-same results file (resumable); an episode whose step raised becomes an error record.
+awaiting an action, then one batched generation per user backend for every episode whose action asks
+the LLM user (`harness.episode.prepare_answers`, `LLMUser.prepare_answers`), then the simulator steps;
+a finished episode's slot is refilled from the queue. Records are `EpisodeRecord`s with each step's
+completion and statistics, appended to the same results file (resumable); an episode whose step raised
+becomes an error record.
 
     policy = LLMPolicy(make_backend("transformers", model="models/tiny"), domain, "planner")
     res = rollout_llm(jobs, Path("runs/planner.jsonl"), domain, policy, make_user, batch=16)
