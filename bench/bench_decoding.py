@@ -1,8 +1,10 @@
 """Constrained decoding engines side by side on the tiny model (CPU), one run, the same prompts and the
 same state grammar, one generation at a time (greedy, `--tokens` new tokens at most):
 
-- unconstrained generation (the `transformers` backend, no grammar);
-- ours: the `transformers` backend's llguidance logits processor (`llm/constrained.py`);
+- unconstrained generation (the `transformers` backend's loop, `llm/decode.py`, no grammar);
+- ours: the `transformers` backend's loop with llguidance masks (`llm/constrained.py`);
+- the same two on `model.generate` (our llguidance logits processor there): the loop every competitor
+  runs in, so that "ours / engine" compares grammar engines, not generation loops;
 - transformers-CFG (the authors' release's choice; pip `transformers-cfg`), fed the grammar converted
   to its EBNF by `lark_to_ebnf`;
 - outlines 1.x's default CFG path (`outlines.types.CFG` on the Lark text; its backend is llguidance).
@@ -121,6 +123,19 @@ def _ours(backend, constrained: bool):
     return Engine("llguidance (ours)" if constrained else "unconstrained", gen)
 
 
+def _ours_on_generate(backend, constrained: bool):
+    from adaptbench.llm.constrained import GrammarProcessor, closing_tokens
+
+    eos = backend.tokenizer.eos_token_id
+
+    def gen(req):
+        procs = [GrammarProcessor(backend.matchers, [req.grammar], eos, backend.vocab, [req.max_tokens],
+                                  closing_tokens(backend.tokenizer, eos))] if constrained else []
+        return _hf_generate(backend, req, procs)
+    name = "llguidance processor, model.generate" if constrained else "unconstrained, model.generate"
+    return Engine(name, gen)
+
+
 def _transformers_cfg(backend):
     from transformers_cfg.generation.logits_process import GrammarConstrainedLogitsProcessor
     from transformers_cfg.grammar_utils import IncrementalGrammarConstraint
@@ -212,7 +227,8 @@ COMPETITORS = {"transformers-CFG": ("transformers_cfg", _transformers_cfg), "out
 
 def engines(backend) -> tuple:
     """The engines that could be built, and (name, reason) for those skipped."""
-    built, skipped = [_ours(backend, False), _ours(backend, True)], []
+    built, skipped = [_ours(backend, False), _ours(backend, True), _ours_on_generate(backend, False),
+                      _ours_on_generate(backend, True)], []
     for name, (module, make) in COMPETITORS.items():
         if importlib.util.find_spec(module) is None:
             skipped.append((name, f"not installed (pip install {module.replace('_', '-')})"))
@@ -271,9 +287,9 @@ def main() -> int:
     rows, skipped = run(args.model, args.n, args.tokens)
     base = dict(rows).get("unconstrained", {}).get("tok_s")
     ours = dict(rows).get("llguidance (ours)", {}).get("tok_s")
-    print(f"{'engine':<22} {'tok/s':>8} {'/ unconstr.':>11} {'ours / it':>10} {'parsed':>8} {'set-up s/gen':>12}")
+    print(f"{'engine':<38} {'tok/s':>8} {'/ unconstr.':>11} {'ours / it':>10} {'parsed':>8} {'set-up s/gen':>12}")
     for name, r in rows:
-        print(f"{name:<22} {r['tok_s']:>8.1f} {r['tok_s'] / base:>11.2f} {ours / r['tok_s']:>10.2f} "
+        print(f"{name:<38} {r['tok_s']:>8.1f} {r['tok_s'] / base:>11.2f} {ours / r['tok_s']:>10.2f} "
               f"{r['parsed']:>4}/{r['n']} {r['compile_s']:>12.3f}")
     for name, why in skipped:
         print(f"skipped {name}: {why}")

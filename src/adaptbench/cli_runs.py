@@ -61,11 +61,11 @@ def _cmd_rollout(args) -> int:
     jobs = _grid(args, domain)
     from .llm.cli import is_llm, run_rollout
 
-    if is_llm(j.agent for j in jobs):
-        return run_rollout(args, jobs, domain)
     res = RolloutResult()
     resume = "re-run the same command to resume (finished episodes are kept and skipped)"
     try:
+        if is_llm(j.agent for j in jobs):
+            return run_rollout(args, jobs, domain)
         res = rollout(jobs, Path(args.out), workers=args.workers, spec=args.spec, progress=not args.quiet)
     except Interrupted as exc:
         print(f"\nadapt: stopped by {exc}; every finished episode is in {args.out}; {resume}", file=sys.stderr)
@@ -223,7 +223,9 @@ def _grid_options(p, seeds_help: str) -> None:
     p.add_argument("--personas", default="all", help="'all' or comma-separated ids")
     p.add_argument("--tasks", default="all", help="'all' or comma-separated ids")
     p.add_argument("--seeds", default="0-3", help=seeds_help)
-    p.add_argument("--workers", type=int, default=1, help="parallel processes (default 1)")
+    p.add_argument("--workers", type=int, default=1,
+                   help="parallel processes (default 1; for a model on the CPU each holds a copy and batches "
+                        "--batch episodes: data parallelism across cores)")
 
 
 def add_commands(sub) -> None:

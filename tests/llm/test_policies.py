@@ -157,3 +157,23 @@ def test_llm_rollout_runs_on_the_harness_loop_one_batched_call_per_round(domain,
     assert all(r.config == {**policy.config(), "user": "offline", "max_steps": 2} for r in recs)
     assert all(s.completion == s.action and s.stats["batch"] in (1, 2) for r in recs for s in r.steps)
     assert rollout_llm(jobs, out, domain, policy, _offline, batch=2, progress=False, steps=2).present == 5
+
+
+def test_worker_processes_split_the_jobs_and_write_what_one_process_writes(domain, tiny, tmp_path):
+    import json
+
+    from adaptbench.llm.hf import TransformersBackend
+    from adaptbench.llm.policies import LLMPolicy
+    from adaptbench.llm.rollout import rollout_llm
+
+    jobs = [Job("planner", p, t, s) for p in ("juan", "miranda") for t in ("eggs", "cereal") for s in (0, 1)]
+
+    def run(workers):
+        out = tmp_path / f"w{workers}.jsonl"
+        policy = LLMPolicy(TransformersBackend(str(tiny)), domain, "planner", max_tokens=12)
+        res = rollout_llm(jobs, out, domain, policy, _offline, batch=2, progress=False, steps=3, workers=workers)
+        assert res.ran == len(jobs) and res.errors == 0
+        recs = [json.loads(line) for line in out.read_text().splitlines()]
+        return {(r["persona"], r["task"], r["seed"]): [s["action"] for s in r["steps"]] for r in recs}
+
+    assert run(2) == run(1)

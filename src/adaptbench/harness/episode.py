@@ -8,6 +8,10 @@ For each step the runner builds the agent's `View` (task text, layout, history o
 name, dishes made so far, step), asks the policy for a `Decision`, steps the simulator (which asks the
 user when the action is a question) and records the step: action, observation, ok, reply, and for model
 policies the decision's prompt, completion and token statistics; for a question, the preferences it targets.
+
+Between the policy's decisions and the steps, `prepare_answers` lets users that answer in batches (the
+language-model user) answer every question of the round in one call; each step then reads its prepared
+answer, identical to the one it would have computed alone. Other users answer inside their step.
 """
 
 from __future__ import annotations
@@ -137,10 +141,35 @@ def _advance(policy: Policy, running: list, catch: bool) -> None:
     if len(decisions) != len(running):
         raise ValueError(f"{type(policy).__name__}.act_batch returned {len(decisions)} decisions "
                          f"for {len(running)} views")
+    decisions = [d if isinstance(d, Decision) else Decision(str(d)) for d in decisions]
+    try:
+        prepare_answers([(ep.env, d.action) for ep, d in zip(running, decisions, strict=True)])
+    except Exception:
+        if not catch:
+            raise  # with `catch`, each user answers in its own step, where an error ends only that episode
     for ep, decision in zip(running, decisions, strict=True):
         try:
-            ep.apply(decision if isinstance(decision, Decision) else Decision(str(decision)))
+            ep.apply(decision)
         except Exception as exc:
             if not catch:
                 raise
             ep.error = (f"{type(exc).__name__}: {exc}", traceback.format_exc())
+
+
+def prepare_answers(steps) -> None:
+    """Before a round of steps: let users that answer in batches answer, together, every question about
+    to be asked. `steps` is a list of (env, action text). A user batches when it has
+    `prepare_answers(asks)` and `batch_key()`: the questions of users of one type with equal keys go to
+    one `prepare_answers([(user, question, dialogue), ...])` call (on the first of them), which keeps
+    each answer for that user's next `answer`. Other users (the offline one, plain callables) answer in
+    their step as before; an action that would ask nothing (`Env.pending_question`) is left alone."""
+    groups: dict = {}
+    for env, action in steps:
+        user = getattr(env, "answerer", None)
+        if not hasattr(user, "prepare_answers"):
+            continue
+        pending = env.pending_question(action)
+        if pending is not None:
+            groups.setdefault((type(user), user.batch_key()), []).append((user, *pending))
+    for asks in groups.values():
+        asks[0][0].prepare_answers(asks)

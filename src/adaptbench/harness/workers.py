@@ -76,6 +76,36 @@ def stop_signals():
             signal.signal(s, h)
 
 
+def _stream_worker(parent: int, work, jobs, results) -> None:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    _die_with_parent(parent)
+
+    def pulled():
+        while True:
+            job = jobs.get()
+            if job is None or os.getppid() != parent:
+                return
+            yield job
+
+    for record in work(pulled()):
+        results.put(record)
+
+
+def run_stream_pool(jobs: list, workers: int, work):
+    """Yield the records of `work(jobs)` — a function from an iterable of jobs to an iterable of one
+    record per job, e.g. batched model rollouts — on `workers` forked processes, each pulling jobs from
+    one shared queue as it goes (1: in this process). The children inherit what the parent built
+    (a model on the CPU, copy-on-write); they are forked, so the parent must not hold a CUDA context."""
+    with stop_signals():
+        if workers <= 1 or len(jobs) <= 1:
+            yield from work(iter(jobs))
+            return
+        if _context().get_start_method() != "fork":
+            raise ValueError("--workers needs the fork start method (Linux); run with --workers 1")
+        yield from _parallel(jobs, min(workers, len(jobs)), _stream_worker, work)
+
+
 def run_pool(jobs: list, spec: str, workers: int):
     """Yield one record per job (in completion order), on `workers` processes (1: in this process)."""
     from .rollout import safe_episode
@@ -85,7 +115,7 @@ def run_pool(jobs: list, spec: str, workers: int):
             for job in jobs:
                 yield safe_episode(job, spec)
             return
-        yield from _parallel(jobs, spec, min(workers, len(jobs)))
+        yield from _parallel(jobs, min(workers, len(jobs)), _worker, spec)
 
 
 def _context():
@@ -93,10 +123,10 @@ def _context():
     return mp.get_context("fork" if "fork" in methods and sys.platform.startswith("linux") else None)
 
 
-def _parallel(jobs: list, spec: str, n: int):
+def _parallel(jobs: list, n: int, target, payload):
     ctx = _context()
     job_q, result_q = ctx.Queue(), ctx.SimpleQueue()
-    procs = [ctx.Process(target=_worker, args=(os.getpid(), spec, job_q, result_q), daemon=True) for _ in range(n)]
+    procs = [ctx.Process(target=target, args=(os.getpid(), payload, job_q, result_q), daemon=True) for _ in range(n)]
     for p in procs:
         p.start()
     try:

@@ -20,13 +20,16 @@ BACKENDS = ("transformers", "openai")
 class Request:
     """One generation: rendered prompt text, a Lark grammar (None: unconstrained), stop strings
     (the completion is cut before the first), a token limit, and a validator for what comes back
-    (`text -> bool`; used where the grammar may not be enforced, e.g. a server without grammars)."""
+    (`text -> bool`; used where the grammar may not be enforced, e.g. a server without grammars), and
+    a session key: requests of one session (an episode's steps) extend each other's prompts, so a
+    backend may keep the session's key/value cache and read only the new tokens."""
 
     prompt: str
     grammar: str | None = None
     stop: tuple = ()
     max_tokens: int = 64
     validate: object = field(default=None, compare=False)
+    session: str | None = None
 
 
 @dataclass(frozen=True)
@@ -74,6 +77,9 @@ class Backend(ABC):
     def config(self) -> dict:
         """What identifies the model (recorded with each episode)."""
         return {"backend": self.name}
+
+    def release(self, session: str) -> None:  # noqa: B027 - optional hook, nothing to release by default
+        """Forget whatever is kept for a session (its episode ended)."""
 
 
 def make_backend(kind: str, **kw) -> Backend:

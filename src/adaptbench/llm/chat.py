@@ -30,17 +30,90 @@ def check_roles(messages) -> None:
             raise ValueError(f"chat roles must alternate user/assistant after the system message (got {roles})")
 
 
+RENDERED = 64  # rendered prompts kept per tokenizer
+
+
 def render(tokenizer, prompt: Prompt) -> str:
     """The prompt as text: the messages through the tokenizer's chat template with the generation
-    prompt, followed by the prefix the completion continues."""
+    prompt, followed by the prefix the completion continues. The last `RENDERED` renderings are kept on
+    the tokenizer (a prompt is rendered while it is fitted to the budget, then again to generate)."""
     check_roles(prompt.messages)
-    text = tokenizer.apply_chat_template(list(prompt.messages), tokenize=False, add_generation_prompt=True)
+    memo = tokenizer.__dict__.get("_adapt_rendered")
+    if memo is None:
+        from ..runtime.tables import LRU
+
+        memo = tokenizer.__dict__["_adapt_rendered"] = LRU(RENDERED)
+    key = tuple((m["role"], m["content"]) for m in prompt.messages)
+    text = memo.get_or_build(key, lambda: tokenizer.apply_chat_template(list(prompt.messages), tokenize=False,
+                                                                       add_generation_prompt=True))
     return text + prompt.prefix
 
 
+ENCODED = 64  # rendered prompts whose token ids are kept per tokenizer
+SEGMENTS = 8192  # text pieces between special tokens whose ids are kept per tokenizer
+CHECKED = 8  # prompts encoded both ways before trusting piecewise encoding
+
+
+def encode(tokenizer, text: str) -> list:
+    """Token ids of a rendered prompt (no special tokens added: the chat template holds them).
+
+    A step's prompt repeats the last one's system message and turns, so the text is cut at the
+    tokenizer's added tokens (which it never merges across) and each piece's ids are remembered: only
+    the new turns are tokenized. The first `CHECKED` prompts are also encoded whole; a tokenizer whose
+    pieces do not add up (e.g. one that adds a prefix space to every piece) is then always encoded
+    whole. The last `ENCODED` texts are remembered too: a prompt is counted while it is fitted to the
+    budget and then encoded again by the backend. Returns a shared list: do not modify it."""
+    state = _encoder(tokenizer)
+    hit = state["texts"].get(text)
+    if hit is not None:
+        return hit
+    if state["pieces"] is None:
+        ids = _whole(tokenizer, text)
+    else:
+        ids = _pieces(tokenizer, state, text)
+        if state["checked"] < CHECKED:
+            state["checked"] += 1
+            if ids != _whole(tokenizer, text):
+                state["pieces"] = None
+                ids = _whole(tokenizer, text)
+    return state["texts"].put(text, ids)
+
+
+def _whole(tokenizer, text: str) -> list:
+    return tokenizer(text, add_special_tokens=False)["input_ids"]
+
+
+def _encoder(tokenizer) -> dict:
+    state = tokenizer.__dict__.get("_adapt_encoder")
+    if state is None:
+        import re
+
+        from ..runtime.tables import LRU
+
+        added = sorted(getattr(tokenizer, "added_tokens_encoder", {}), key=len, reverse=True)
+        split = re.compile("(" + "|".join(map(re.escape, added)) + ")") if added else None
+        state = tokenizer.__dict__["_adapt_encoder"] = {
+            "texts": LRU(ENCODED), "pieces": LRU(SEGMENTS) if split else None, "split": split, "checked": 0,
+            "ids": dict(getattr(tokenizer, "added_tokens_encoder", {}))}
+    return state
+
+
+def _pieces(tokenizer, state: dict, text: str) -> list:
+    out: list = []
+    memo, ids = state["pieces"], state["ids"]
+    for k, piece in enumerate(state["split"].split(text)):
+        if not piece:
+            continue
+        if k % 2:  # an added token
+            out.append(ids[piece])
+        else:
+            out += memo.get_or_build(piece, lambda p=piece: _whole(tokenizer, p))
+    return out
+
+
 def count(tokenizer, text: str) -> int:
-    """Tokens in a rendered prompt (the chat template already holds the special tokens)."""
-    return len(tokenizer(text, add_special_tokens=False)["input_ids"])
+    """Tokens in a rendered prompt."""
+    return len(encode(tokenizer, text))
 
 
 def history_steps(prompt: Prompt) -> int:

@@ -69,6 +69,9 @@ def run_rollout(args, jobs: list, domain) -> int:
               "builds a tiny one)")
     if args.batch < 1:
         _fail(f"--batch must be at least 1 (got {args.batch})")
+    if args.workers > 1 and args.backend == "transformers" and args.device != "cpu":
+        _fail(f"--workers {args.workers} runs that many copies of the model on the CPU; on --device "
+              f"{args.device} use one process and --batch")
     backend = _backend(args, args.model)
     user_backend = backend if args.user == "offline" or not args.user_model or args.user_model == args.model \
         else _backend(args, args.user_model)
@@ -87,7 +90,7 @@ def run_rollout(args, jobs: list, domain) -> int:
         policy = LLMPolicy(backend, domain, agent, budget=args.budget)
         try:
             res = rollout_llm([j for j in jobs if j.agent == agent], Path(args.out), domain, policy, make_user,
-                              args.batch, not args.quiet, user_config, args.max_steps)
+                              args.batch, not args.quiet, user_config, args.max_steps, args.workers)
         except ResultsError as exc:
             _fail(str(exc), exc.code)
         ran, errors, present = ran + res.ran, errors + res.errors, present + res.present

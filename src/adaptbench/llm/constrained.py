@@ -159,19 +159,58 @@ class GrammarProcessor(LogitsProcessor):
         self.mask_seconds += time.perf_counter() - t0
         return scores
 
-    def _close(self, rows, scores: torch.Tensor) -> None:
+    def _close(self, rows, scores: torch.Tensor, step: int | None = None, at=None) -> None:
         if self.closing is None:
             return
+        step = self.steps if step is None else step
         for i in rows:
             limit = self.limits[i]
-            if limit is None or limit - self.steps > self.reserve:
+            if limit is None or limit - step > self.reserve:
                 continue
+            r = i if at is None else at[i]
             keep = self.closing.to(scores.device)
-            allowed = scores[i, keep] > float("-inf")
+            allowed = scores[r, keep] > float("-inf")
             if bool(allowed.any()):
-                row = torch.full_like(scores[i], float("-inf"))
-                row[keep] = scores[i, keep]
-                scores[i] = row
+                row = torch.full_like(scores[r], float("-inf"))
+                row[keep] = scores[r, keep]
+                scores[r] = row
+
+    # The generation loop's interface (`decode.decode`): rows are named by their index in the request
+    # list, logits rows by their place among the rows still running.
+
+    def feed(self, rows, tokens) -> None:
+        """Feed each row its newest token."""
+        for i, t in zip(rows, tokens, strict=True):
+            if not self.finished[i]:
+                if t == self.eos_id:
+                    self.finished[i] = True
+                self._feed(i, t)
+
+    def fill(self, rows) -> list:
+        """Compute the next-token masks of the rows still constrained; returns those rows."""
+        live = [(self.matchers[i], i) for i in rows
+                if self.matchers[i] is not None and not self.finished[i] and not self.errors[i]]
+        if live:
+            fill_next_token_bitmask_par(executor(), live, self.bitmask)
+        return [i for _, i in live]
+
+    def mask(self, logits: torch.Tensor, rows, live, step: int) -> None:
+        """Mask `logits` (row k is request row `rows[k]`) with the masks `fill` computed for `live`, and
+        steer rows near their token limit to close."""
+        if not live:
+            return
+        at = {i: k for k, i in enumerate(rows)}
+        idx = torch.tensor([at[i] for i in live], dtype=torch.long)
+        src = torch.tensor(live, dtype=torch.long)
+        allowed = ((self.bitmask[src].unsqueeze(-1) >> _BITS) & 1).bool().reshape(len(live), -1)
+        vocab = logits.shape[1]
+        if allowed.shape[1] < vocab:
+            allowed = torch.nn.functional.pad(allowed, (0, vocab - allowed.shape[1]), value=False)
+        allowed = allowed[:, :vocab].to(logits.device)
+        idx = idx.to(logits.device)
+        logits[idx] = logits[idx].masked_fill(~allowed, float("-inf"))
+        self._close(live, logits, step, at)
+        self.masked_steps += 1
 
     def accepted(self, row: int) -> bool:
         """Whether row `row`'s matcher ended in an accepting state (True for unconstrained rows)."""

@@ -18,8 +18,10 @@ from transformers import (
     StoppingCriteriaList,
 )
 
+from . import chat
 from .backend import Backend, Completion, Scored, cut_at_stop
 from .constrained import GrammarProcessor, Matchers, closing_tokens, ll_tokenizer
+from .decode import Picker, Row, Sessions, decode, loop_supported
 
 DTYPES = {"auto": "auto", "float32": torch.float32, "bfloat16": torch.bfloat16, "float16": torch.float16}
 
@@ -65,7 +67,7 @@ class TransformersBackend(Backend):
     name = "transformers"
 
     def __init__(self, model: str, device: str = "cpu", dtype: str = "auto", batch_size: int = 16,
-                 temperature: float = 0.0, seed: int = 0, threads: int | None = 1):
+                 temperature: float = 0.0, seed: int = 0, threads: int | None = 1, sessions: int | None = None):
         if not Path(model).is_dir():
             raise FileNotFoundError(f"--model {model}: not a directory (a model saved with save_pretrained; "
                                     "`adapt model init --out DIR` builds the tiny one)")
@@ -82,6 +84,10 @@ class TransformersBackend(Backend):
         self.matchers = Matchers(self.lltok)
         self.pad_id = self.tokenizer.pad_token_id if self.tokenizer.pad_token_id is not None \
             else self.tokenizer.eos_token_id
+        self.loop = loop_supported(self.model)
+        self.prefill_together = device != "cpu"  # see decode.prefill_rows
+        self.sessions = Sessions(2 * batch_size if sessions is None else sessions)
+        self._generator = torch.Generator(device=device).manual_seed(seed)
 
     def config(self) -> dict:
         """The model directory, device, dtype and sampling temperature."""
@@ -90,7 +96,7 @@ class TransformersBackend(Backend):
 
     def encode(self, text: str) -> list:
         """Token ids of rendered text (no special tokens added: the chat template holds them)."""
-        return self.tokenizer(text, add_special_tokens=False)["input_ids"]
+        return chat.encode(self.tokenizer, text)
 
     def generate(self, requests) -> list:
         """Completions for the requests, `batch_size` rows per forward pass."""
@@ -99,16 +105,46 @@ class TransformersBackend(Backend):
             out += self._batch(list(requests[i:i + self.batch_size]))
         return out
 
+    def release(self, session: str) -> None:
+        """Forget a session's cached keys and values (its episode ended)."""
+        self.sessions.drop(session)
+
     @torch.no_grad()
     def _batch(self, reqs: list) -> list:
         t0 = time.perf_counter()
         prompts = [self.encode(r.prompt) for r in reqs]
-        ids, mask = _left_pad(prompts, self.pad_id)
-        ids, mask = ids.to(self.device), mask.to(self.device)
         eos = self.tokenizer.eos_token_id
         proc = (GrammarProcessor(self.matchers, [r.grammar for r in reqs], eos, self.vocab,
                                  [r.max_tokens for r in reqs], closing_tokens(self.tokenizer, eos))
                 if any(r.grammar is not None for r in reqs) else None)
+        if not self.loop:
+            return self._batch_hf(reqs, prompts, proc, t0)
+        rows = [Row(p, r.max_tokens, tuple(r.stop), getattr(r, "session", None)) for p, r in zip(prompts, reqs, strict=True)]
+        picker = Picker(proc, self.temperature, self._generator)
+        decode(self.model, rows, self.sessions, picker, self._stopper(rows), self.pad_id,
+               self.prefill_together)
+        seconds = time.perf_counter() - t0
+        return [self._completion(r, row.tokens, len(row.prompt), proc, i, seconds, len(reqs), row.reused)
+                for i, (r, row) in enumerate(zip(reqs, rows, strict=True))]
+
+    def _stopper(self, rows: list):
+        eos = self.tokenizer.eos_token_id
+
+        def stopped(i: int, row: Row) -> bool:
+            if row.tokens[-1] == eos or len(row.tokens) >= row.max_tokens:
+                return True
+            if row.stop:
+                tail = self.tokenizer.decode(row.tokens, skip_special_tokens=True)
+                return any(s and s in tail for s in row.stop)
+            return False
+
+        return stopped
+
+    def _batch_hf(self, reqs: list, prompts: list, proc, t0: float) -> list:
+        """`model.generate` (models whose cache this loop does not handle, e.g. sliding-window layers)."""
+        ids, mask = _left_pad(prompts, self.pad_id)
+        ids, mask = ids.to(self.device), mask.to(self.device)
+        eos = self.tokenizer.eos_token_id
         stops = RowStops(self.tokenizer, ids.shape[1], [r.max_tokens for r in reqs], [r.stop for r in reqs])
         sample = self.temperature > 0
         if sample:
@@ -123,7 +159,8 @@ class TransformersBackend(Backend):
         return [self._completion(r, gen[i, ids.shape[1]:].tolist(), len(prompts[i]), proc, i, seconds, len(reqs))
                 for i, r in enumerate(reqs)]
 
-    def _completion(self, req, tokens: list, n_prompt: int, proc, row: int, seconds: float, batch: int):
+    def _completion(self, req, tokens: list, n_prompt: int, proc, row: int, seconds: float, batch: int,
+                    reused: int | None = None):
         eos = self.tokenizer.eos_token_id
         if eos in tokens:
             tokens = tokens[:tokens.index(eos) + 1]
@@ -133,6 +170,8 @@ class TransformersBackend(Backend):
         text = cut_at_stop(self.tokenizer.decode(tokens, skip_special_tokens=True), req.stop)
         accepted = None if req.grammar is None else proc.accepted(row)
         stats = {"seconds": round(seconds, 4), "batch": batch}
+        if reused is not None:
+            stats["cached_tokens"] = reused
         if proc is not None:
             stats["mask_seconds"] = round(proc.mask_seconds, 4)
         return Completion(text, n_prompt, len(tokens), accepted, stats)

@@ -68,8 +68,9 @@ class LLMPolicy(Policy):
             self._state(episode, None).env = env
 
     def end(self, episode: str) -> None:
-        """Forget the episode."""
+        """Forget the episode (and the backend's cache of it)."""
         self._episodes.pop(episode, None)
+        self.backend.release(episode)
 
     def _state(self, episode: str, view) -> _Episode:
         ep = self._episodes.get(episode)
@@ -121,12 +122,13 @@ class LLMPolicy(Policy):
         thoughts = [""] * len(views)
         if self.kind == "react":
             todo = [i for i, (_, _, force) in enumerate(prepared) if not force]
-            outs = self.backend.generate([Request(texts[i], None, ("\n",), THOUGHT_TOKENS) for i in todo])
+            outs = self.backend.generate([Request(texts[i], None, ("\n",), THOUGHT_TOKENS, session=views[i].episode)
+                                          for i in todo])
             for i, out in zip(todo, outs, strict=True):
                 thoughts[i] = out.text.strip()
                 texts[i] += thoughts[i] + "\n" + ACTION_PREFIX
-        outs = self.backend.generate([Request(t, g, (), self.max_tokens, self._parses)
-                                      for t, (_, g, _) in zip(texts, prepared, strict=True)])
+        outs = self.backend.generate([Request(t, g, (), self.max_tokens, self._parses, v.episode)
+                                      for t, (_, g, _), v in zip(texts, prepared, views, strict=True)])
         return [self._decision(p, out, force, thought, prep_seconds / len(views))
                 for (p, _, force), out, thought in zip(prepared, outs, thoughts, strict=True)]
 

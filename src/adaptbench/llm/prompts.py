@@ -55,7 +55,20 @@ def environment() -> jinja2.Environment:
 
 
 def fill(name: str, **values) -> str:
-    """Render one template (`planner`, `turn`, ...) and strip surrounding blank lines."""
+    """Render one template (`planner`, `turn`, ...) and strip surrounding blank lines. Renderings with
+    hashable values are remembered (each step's prompt repeats the last one's system message and turns)."""
+    try:
+        return _fill(name, tuple(sorted(values.items())))
+    except TypeError:  # an unhashable value
+        return _render(name, values)
+
+
+@lru_cache(maxsize=8192)
+def _fill(name: str, items: tuple) -> str:
+    return _render(name, dict(items))
+
+
+def _render(name: str, values: dict) -> str:
     return environment().get_template(f"{name}.j2").render(**values).strip("\n")
 
 

@@ -1,8 +1,10 @@
 """Batched rollouts of language-model agents, on the harness's loop (`harness.episode.iter_batch`): up
 to `batch` episodes advance together, one batched generation (`LLMPolicy.act_batch`) for every episode
-awaiting an action, simulator steps (and user answers) in between; a finished episode's slot is refilled
-from the queue. Records are `EpisodeRecord`s with each step's completion and statistics, appended to the
-same results file (resumable); an episode whose step raised becomes an error record.
+awaiting an action, then one batched generation per user backend for every episode whose action asks
+the LLM user (`harness.episode.prepare_answers`, `LLMUser.prepare_answers`), then the simulator steps;
+a finished episode's slot is refilled from the queue. Records are `EpisodeRecord`s with each step's
+completion and statistics, appended to the same results file (resumable); an episode whose step raised
+becomes an error record.
 
     policy = LLMPolicy(make_backend("transformers", model="models/tiny"), domain, "planner")
     res = rollout_llm(jobs, Path("runs/planner.jsonl"), domain, policy, make_user, batch=16)
@@ -16,6 +18,7 @@ from ..harness.episode import Episode, iter_batch
 from ..harness.record import EpisodeRecord
 from ..harness.results import ResultsFile, episode_key
 from ..harness.rollout import RolloutResult, _write
+from ..harness.workers import Interrupted, run_stream_pool
 from ..progress import Progress
 from ..runtime.env import MAX_STEPS, Env
 
@@ -74,9 +77,12 @@ def _user_config(user) -> dict:
 
 
 def rollout_llm(jobs, out: Path, domain, policy, make_user, batch: int = 16, progress: bool = True,
-                user_config: dict | None = None, steps: int | None = None) -> RolloutResult:
+                user_config: dict | None = None, steps: int | None = None, workers: int = 1) -> RolloutResult:
     """Run the jobs not yet in `out` (same agent configuration and spec), appending each record. The
-    recorded configuration is `policy.config()` with the user's (`user_config`) and any step budget."""
+    recorded configuration is `policy.config()` with the user's (`user_config`) and any step budget.
+    With `workers` > 1, that many forked processes (each with the parent's model, copy-on-write) run
+    batched rollouts on jobs pulled from one queue and this process writes their records: data
+    parallelism for models on the CPU."""
     res = RolloutResult()
     config = {**policy.config(), **(user_config or {"user": "offline"}), **({"max_steps": steps} if steps else {})}
     with ResultsFile.open(Path(out), domain.spec_hash) as store:
@@ -88,8 +94,14 @@ def rollout_llm(jobs, out: Path, domain, policy, make_user, batch: int = 16, pro
         res.present = len(set(jobs)) - len(todo)
         bar = Progress(len(todo), f"rollout -> {Path(out).name}") if progress else None
         try:
-            for rec in run_batched(todo, domain, policy, make_user, batch, config, steps):
+            def work(js):
+                return run_batched(js, domain, policy, make_user, batch, config, steps)
+
+            for rec in run_stream_pool(todo, workers, work):
                 _write(store, rec, bar, res)
+        except Interrupted:
+            res.interrupted = True
+            raise
         finally:
             if bar:
                 bar.__exit__(None, None, None)

@@ -340,8 +340,13 @@ def _mark(world: World, node, params: dict, verb: str, where: str) -> None:
 def ask(world: World, params: dict, b: dict, ctx) -> str:
     """Ask the user a question; the reply is recorded on the step."""
     world.questions += 1
-    ctx["reply"] = ctx["user"](_arg(params, b, "question"), dialogue(world)) if ctx.get("user") else ""
+    ctx["reply"] = ctx["user"](question(params, b), dialogue(world)) if ctx.get("user") else ""
     return ""
+
+
+def question(params: dict, b: dict) -> str:
+    """The question an `ask` effect puts to the user, from its parameters and the step's bindings."""
+    return _arg(params, b, "question")
 
 
 def dialogue(world: World) -> tuple:

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 from ..compiler.model import CompiledDomain
 from .actions import ActionFailed, bind, resolve_holders
-from .effects import PRIMITIVES
+from .effects import PRIMITIVES, dialogue, question
 from .index import RuntimeIndex, runtime_index
 from .observe import layout
 from .scene import sample_scene
@@ -30,8 +30,9 @@ class StepResult:
 class Env:
     """An ADAPT episode. `persona` is an id or a `Persona`; `user` answers questions: a callable
     `(question, dialogue) -> str` or an object with `.answer(question, dialogue)`, where `dialogue` is
-    the ((question, reply), ...) asked so far. `index` is the domain's runtime index (parser,
-    preconditions); by default the one kept with the domain.
+    the ((question, reply), ...) asked so far (`answerer` keeps the object as given, `user` its answering
+    callable). `index` is the domain's runtime index (parser, preconditions); by default the one kept
+    with the domain.
 
     Action text is read exactly as the grammar defines it (docs/grammar.md): canonical spelling, single
     spaces. Cleaning up model output ("Action:" prefixes, trailing dots) is the agent side's job
@@ -48,6 +49,7 @@ class Env:
         self.task = domain.task[task]
         self.persona = domain.persona[persona] if isinstance(persona, str) else persona
         self.scene = sample_scene(domain, seed, full_scene)
+        self.answerer = user
         self.user = getattr(user, "answer", user)
         self.max_steps = max_steps
         self.index = index if index is not None else runtime_index(domain)
@@ -79,6 +81,17 @@ class Env:
         return StepResult(obs, ok, self.done, ctx["reply"])
 
     def _run(self, text: str, ctx: dict):
+        action, b = self._plan(text)
+        obs = None
+        for eff in action.effects:
+            out = PRIMITIVES[eff.primitive](self.world, dict(eff.params), b, ctx)
+            obs = out if out is not None else obs
+        args = {k: str(v) for k, v in b.items()}
+        return action.id, args, obs if obs is not None else _fill(action.success, b)
+
+    def _plan(self, text: str):
+        """The action and bindings `text` would run now, or ActionFailed (repeat limit, parse, bindings,
+        preconditions). Changes nothing."""
         w = self.world
         recent = [e.text for e in w.trace[-(REPEAT_WINDOW - 1):]]
         if recent.count(text) >= REPEAT_LIMIT - 1:
@@ -92,12 +105,23 @@ class Env:
         for check, fail in self.index.checks[action.id]:
             if not check(w, b):
                 raise ActionFailed(_fill(fail, b))
-        obs = None
-        for eff in action.effects:
-            out = PRIMITIVES[eff.primitive](w, dict(eff.params), b, ctx)
-            obs = out if out is not None else obs
-        args = {k: str(v) for k, v in b.items()}
-        return action.id, args, obs if obs is not None else _fill(action.success, b)
+        return action, b
+
+    def pending_question(self, text: str):
+        """What the user would be asked if `text` were stepped now: (question, dialogue), the arguments
+        `user` would get, in the state it would see them in; None when the step would ask nothing (the
+        episode is over, there is no user, the action fails, or it is not a question). Only an action
+        whose first effect asks counts (nothing changes the world before the user reads it).
+        Changes nothing: used to answer the questions of many episodes in one batch before stepping."""
+        if self.done or self.user is None:
+            return None
+        try:
+            action, b = self._plan(text)
+        except ActionFailed:
+            return None
+        if not action.effects or action.effects[0].primitive != "ask":
+            return None
+        return question(dict(action.effects[0].params), b), dialogue(self.world)
 
     def observed(self):
         """What the agent has seen so far (a read-only snapshot): the entity ids it may name (layout,

@@ -1,0 +1,182 @@
+"""The transformers backend's generation loop (`llm.decode`): batched rows with their own lengths and
+grammars give what `model.generate` gives one prompt at a time, and an episode's later steps read only
+their new tokens from the session's cache without changing what is generated."""
+
+from __future__ import annotations
+
+import pytest
+
+from .conftest import SKIP_MODELS, play
+
+pytestmark = [SKIP_MODELS, pytest.mark.paper]
+
+
+def _sharp(tiny, **kw):
+    """The tiny model with weights redrawn at std 0.5: its greedy output depends on the context (the
+    freshly initialised model repeats one token whatever the prompt, which would prove nothing)."""
+    import torch
+
+    from adaptbench.llm.hf import TransformersBackend
+
+    b = TransformersBackend(str(tiny), **kw)
+    g = torch.Generator().manual_seed(1)
+    with torch.no_grad():
+        for p in b.model.parameters():
+            if p.dim() == 2:
+                p.copy_(torch.randn(p.shape, generator=g) * 0.5)
+    return b
+
+
+@pytest.fixture(scope="module")
+def sharp(tiny):
+    """A backend on the sharpened tiny model."""
+    return _sharp(tiny)
+
+
+def _prompts(domain, backend, n=4):
+    from adaptbench.llm.chat import render
+    from adaptbench.llm.prompts import PromptBuilder
+
+    out = []
+    for k in range(n):
+        ep, made_after = play(domain, steps=("Look for eggs", "Open fridge_0", "Look for milk")[:k])
+        out.append(render(backend.tokenizer, PromptBuilder(domain, "planner").prompt(ep.view(), made_after=made_after)))
+    return out
+
+
+def _grammar(domain, task="eggs"):
+    from adaptbench.grammars import GrammarCache
+    from adaptbench.runtime.index import runtime_index
+
+    ep, _ = play(domain, steps=())
+    return GrammarCache(runtime_index(domain).grammar).state(task, ep.env.observed()).text
+
+
+def _one_by_one_with_generate(backend, reqs):
+    out = []
+    for r in reqs:
+        prompt = backend.encode(r.prompt)
+        from adaptbench.llm.constrained import GrammarProcessor, closing_tokens
+
+        eos = backend.tokenizer.eos_token_id
+        proc = (GrammarProcessor(backend.matchers, [r.grammar], eos, backend.vocab, [r.max_tokens],
+                                 closing_tokens(backend.tokenizer, eos)) if r.grammar else None)
+        out += backend._batch_hf([r], [prompt], proc, 0.0)
+    return [o.text for o in out]
+
+
+@pytest.mark.parametrize("constrained", [False, True])
+def test_batched_rows_match_model_generate_one_at_a_time(domain, sharp, constrained):
+    from adaptbench.llm.backend import Request
+
+    g = _grammar(domain) if constrained else None
+    reqs = [Request(p, g, (), 12 + 3 * i) for i, p in enumerate(_prompts(domain, sharp))]
+    assert len({len(sharp.encode(r.prompt)) for r in reqs}) == len(reqs)  # rows of different lengths
+    ours = sharp.generate(reqs)
+    assert len({c.text for c in ours}) == len(reqs)  # the rows' outputs differ
+    assert [c.text for c in ours] == _one_by_one_with_generate(sharp, reqs)
+    if constrained:
+        assert all(c.accepted for c in ours)
+
+
+def test_a_session_reads_only_new_tokens_and_generates_the_same(domain, tiny):
+    from adaptbench.llm.backend import Request
+
+    cached, fresh = _sharp(tiny), _sharp(tiny, sessions=0)
+    g = _grammar(domain)
+    text = _prompts(domain, cached, 1)[0]
+    for step in range(4):
+        a = cached.generate([Request(text, g, (), 16, session="ep")])[0]
+        b = fresh.generate([Request(text, g, (), 16, session="ep")])[0]
+        assert a.text == b.text
+        assert b.stats["cached_tokens"] == 0
+        if step:  # everything before this step's new turn came from the cache
+            assert a.stats["cached_tokens"] > a.prompt_tokens - 40
+        text = text + a.text + "<|end|>\n<|user|>\nObservation: nothing happens.<|end|>\n<|assistant|>\n"
+    assert len(cached.sessions) == 1
+    cached.release("ep")
+    assert len(cached.sessions) == 0
+
+
+def test_a_truncated_prompt_reuses_the_prefix_it_still_shares(domain, backend):
+    from adaptbench.llm.backend import Request
+
+    text = _prompts(domain, backend, 3)[2]
+    backend.generate([Request(text, None, (), 4, session="cut")])
+    shorter = text[: len(text) // 2] + "<|end|>\n<|assistant|>\n"
+    out = backend.generate([Request(shorter, None, (), 4, session="cut")])[0]
+    shared = len(backend.encode(text[: len(text) // 2])) - 2
+    assert shared <= out.stats["cached_tokens"] < out.prompt_tokens
+    backend.release("cut")
+
+
+def test_sessions_are_bounded_least_recently_used_first(domain, tiny):
+    from adaptbench.llm.backend import Request
+    from adaptbench.llm.hf import TransformersBackend
+
+    b = TransformersBackend(str(tiny), sessions=2)
+    text = _prompts(domain, b, 1)[0]
+    for s in ("a", "b", "c"):
+        b.generate([Request(text, None, (), 2, session=s)])
+    assert len(b.sessions) == 2 and b.sessions.take("a") is None
+
+
+def test_sampling_is_seeded(domain, tiny):
+    from adaptbench.llm.backend import Request
+    from adaptbench.llm.hf import TransformersBackend
+
+    reqs = [Request(p, None, (), 16) for p in _prompts(domain, TransformersBackend(str(tiny)), 2)]
+    runs = [[c.text for c in _sharp(tiny, temperature=1.0, seed=s).generate(reqs)] for s in (0, 0, 1)]
+    assert runs[0] == runs[1] != runs[2]
+
+
+def test_rows_of_several_sessions_read_their_new_tokens_together_and_generate_the_same(domain, tiny):
+    from adaptbench.llm import decode
+    from adaptbench.llm.backend import Request
+
+    cached, fresh = _sharp(tiny), _sharp(tiny, sessions=0)
+    cached.prefill_together = True  # the GPU's way, checked here on the CPU
+    g = _grammar(domain)
+    texts = _prompts(domain, cached, 3)
+    calls = []
+    many = decode.prefill_many
+
+    def spy(*a, **kw):
+        calls.append(len(a[1]))
+        return many(*a, **kw)
+
+    decode.prefill_many = spy
+    try:
+        for step in range(3):
+            reqs = [Request(t, g if i != 1 else None, (), 10 + 2 * i, session=f"s{i}") for i, t in enumerate(texts)]
+            a, b = cached.generate(reqs), fresh.generate(reqs)
+            assert [c.text for c in a] == [c.text for c in b]
+            turn = f"<|end|>\n<|user|>\nObservation: step {step}{'.' * step}<|end|>\n<|assistant|>\n"
+            texts = [t + c.text + turn * (1 + i) for i, (t, c) in enumerate(zip(texts, a, strict=True))]
+    finally:
+        decode.prefill_many = many
+    assert calls == [3, 3]  # steps 2 and 3: the three rows' new tokens in one forward pass
+
+
+def test_piecewise_encoding_equals_whole_encoding(domain, backend):
+    from adaptbench.llm.chat import encode
+
+    tok = backend.tokenizer
+    for text in _prompts(domain, backend, 4):
+        assert encode(tok, text) == tok(text, add_special_tokens=False)["input_ids"]
+    assert tok.__dict__["_adapt_encoder"]["pieces"] is not None  # the tiny tokenizer's pieces add up
+
+
+def test_a_tokenizer_whose_pieces_do_not_add_up_is_encoded_whole():
+    from adaptbench.llm.chat import encode
+
+    class PrefixingTokenizer:  # adds a "prefix space" token to every call, like some SentencePiece set-ups
+        added_tokens_encoder = {"<s>": 0}
+
+        def __call__(self, text, add_special_tokens=False):
+            return {"input_ids": [9] + [ord(c) for c in text.replace("<s>", "\0")]}
+
+    tok = PrefixingTokenizer()
+    text = "hello<s>world"
+    assert encode(tok, text) == tok(text)["input_ids"]
+    assert tok.__dict__["_adapt_encoder"]["pieces"] is None
