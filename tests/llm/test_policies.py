@@ -171,6 +171,7 @@ def test_worker_processes_split_the_jobs_and_write_what_one_process_writes(domai
     def run(workers):
         out = tmp_path / f"w{workers}.jsonl"
         policy = LLMPolicy(TransformersBackend(str(tiny)), domain, "planner", max_tokens=12)
+        policy.act_batch([play(domain)[0].view()] * 4)  # the parent's mask threads exist before the fork
         res = rollout_llm(jobs, out, domain, policy, _offline, batch=2, progress=False, steps=3, workers=workers)
         assert res.ran == len(jobs) and res.errors == 0
         recs = [json.loads(line) for line in out.read_text().splitlines()]

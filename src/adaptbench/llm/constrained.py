@@ -13,6 +13,7 @@ emits EOS; its later (padding) tokens are not fed to the matcher.
 
 from __future__ import annotations
 
+import os
 import time
 
 import llguidance
@@ -22,6 +23,7 @@ from llguidance.torch import allocate_token_bitmask, fill_next_token_bitmask_par
 from transformers import LogitsProcessor
 
 _EXECUTOR: list = []  # the process's llguidance executor, made on first use
+os.register_at_fork(after_in_child=_EXECUTOR.clear)  # its threads do not survive a fork: a child makes its own
 MATCHER_CACHE = 256
 
 

@@ -22,6 +22,7 @@ little wall time beyond the forward pass.
 
 from __future__ import annotations
 
+import os
 from collections import OrderedDict
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
@@ -31,6 +32,7 @@ from transformers import DynamicCache
 from transformers.cache_utils import DynamicLayer
 
 _POOL: list = []
+os.register_at_fork(after_in_child=_POOL.clear)  # a forked worker has no threads: it starts its own pool
 
 
 def _pool() -> ThreadPoolExecutor:
