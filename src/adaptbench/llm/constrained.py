@@ -19,7 +19,7 @@ import time
 import llguidance
 import llguidance.hf
 import torch
-from llguidance.torch import allocate_token_bitmask, fill_next_token_bitmask_par
+from llguidance.torch import allocate_token_bitmask, fill_next_token_bitmask, fill_next_token_bitmask_par
 from transformers import LogitsProcessor
 
 _EXECUTOR: list = []  # the process's llguidance executor, made on first use
@@ -65,6 +65,15 @@ def grammar_error(lltok, grammar: str) -> str:
 
 
 _BITS = torch.arange(32, dtype=torch.int32)
+
+
+def unpack_bits(words: torch.Tensor, vocab: int) -> torch.Tensor:
+    """Allowed-token booleans [rows, vocab] from llguidance bitmask words [rows, n] (int32; bit i of word
+    w = token 32 w + i); tokens past the mask are not allowed."""
+    table = ((words.unsqueeze(-1) >> _BITS) & 1).bool().reshape(words.shape[0], -1)
+    if table.shape[1] < vocab:
+        table = torch.nn.functional.pad(table, (0, vocab - table.shape[1]), value=False)
+    return table[:, :vocab]
 
 
 def apply_bitmask(logits: torch.Tensor, bitmask: torch.Tensor, rows) -> None:
@@ -192,7 +201,9 @@ class GrammarProcessor(LogitsProcessor):
         """Compute the next-token masks of the rows still constrained; returns those rows."""
         live = [(self.matchers[i], i) for i in rows
                 if self.matchers[i] is not None and not self.finished[i] and not self.errors[i]]
-        if live:
+        if len(live) == 1:  # one row: no hand-over to the executor's threads
+            fill_next_token_bitmask(live[0][0], self.bitmask, live[0][1])
+        elif live:
             fill_next_token_bitmask_par(executor(), live, self.bitmask)
         return [i for _, i in live]
 
@@ -201,17 +212,20 @@ class GrammarProcessor(LogitsProcessor):
         steer rows near their token limit to close."""
         if not live:
             return
-        at = {i: k for k, i in enumerate(rows)}
-        idx = torch.tensor([at[i] for i in live], dtype=torch.long)
-        src = torch.tensor(live, dtype=torch.long)
-        allowed = ((self.bitmask[src].unsqueeze(-1) >> _BITS) & 1).bool().reshape(len(live), -1)
         vocab = logits.shape[1]
-        if allowed.shape[1] < vocab:
-            allowed = torch.nn.functional.pad(allowed, (0, vocab - allowed.shape[1]), value=False)
-        allowed = allowed[:, :vocab].to(logits.device)
-        idx = idx.to(logits.device)
-        logits[idx] = logits[idx].masked_fill(~allowed, float("-inf"))
-        self._close(live, logits, step, at)
+        same = len(live) == len(rows) and list(live) == list(rows)
+        words = self.bitmask if same and len(rows) == self.bitmask.shape[0] else \
+            self.bitmask[torch.tensor(live, dtype=torch.long)]
+        forbidden = ~unpack_bits(words, vocab).to(logits.device)
+        if same:  # every row constrained, in order: mask in place
+            logits.masked_fill_(forbidden, float("-inf"))
+        else:
+            at = {i: k for k, i in enumerate(rows)}
+            idx = torch.tensor([at[i] for i in live], dtype=torch.long, device=logits.device)
+            logits[idx] = logits[idx].masked_fill(forbidden, float("-inf"))
+        if self.closing is not None and any(lim is not None and lim - step <= self.reserve
+                                            for lim in (self.limits[i] for i in live)):
+            self._close(live, logits, step, {i: k for k, i in enumerate(rows)})
         self.masked_steps += 1
 
     def accepted(self, row: int) -> bool:

@@ -247,13 +247,19 @@ def _stack(model, rows_layers: list, lengths: list, room: int) -> tuple:
     return cache, mask
 
 
-def decode(model, rows: list, sessions: Sessions, picker, stopped, pad_id: int = 0, together: bool = True) -> None:
+def decode(model, rows: list, sessions: Sessions, picker, stopped, pad_id: int = 0, together: bool = True) -> float:
     """Generate every row's tokens in place (`row.tokens`). `picker.pick(logits [B, V], active row
     indices, step) -> token ids [B]` masks and picks the next token of each active row (the grammar
     acts there) and `picker.advance(active, tokens)` hears which tokens the rows still running took;
     `stopped(row_index, row) -> bool` says a row is over after its newest token (EOS, stop string,
-    limit). Sessions get their rows' caches back. `together`: see `prefill_rows`."""
+    limit). Sessions get their rows' caches back. `together`: see `prefill_rows`. Returns the seconds
+    spent reading the prompts (the rest is decoding)."""
+    import time
+
+    t0 = time.perf_counter()
+    picker.start(list(range(len(rows))))  # the first masks need no prompt: computed while the prompts are read
     first, layers = zip(*prefill_rows(model, rows, sessions, pad_id, together), strict=True)
+    reading = time.perf_counter() - t0
     lengths = [len(r.prompt) for r in rows]
     active = list(range(len(rows)))
     logits = torch.stack(first)
@@ -267,8 +273,9 @@ def decode(model, rows: list, sessions: Sessions, picker, stopped, pad_id: int =
             if stopped(i, rows[i]):
                 rows[i].done = True
                 n = lengths[i] + len(rows[i].tokens) - 1  # prompt and generated tokens read so far
-                sessions.put(rows[i].session, rows[i].prompt + rows[i].tokens[:-1],
-                             [layer.row(k, n) for layer in cache.layers])
+                if rows[i].session is not None and sessions.limit > 0:
+                    sessions.put(rows[i].session, rows[i].prompt + rows[i].tokens[:-1],
+                                 [layer.row(k, n) for layer in cache.layers])
             else:
                 still.append(k)
         if not still:
@@ -282,6 +289,7 @@ def decode(model, rows: list, sessions: Sessions, picker, stopped, pad_id: int =
         picker.advance(active, picked.tolist())
         logits, mask = _forward(model, cache, mask, picked, [lengths[i] + len(rows[i].tokens) - 1 for i in active])
         step += 1
+    return reading
 
 
 def _forward(model, cache, mask: torch.Tensor, tokens: torch.Tensor, positions: list) -> tuple:
@@ -338,6 +346,11 @@ class Picker:
             probs = torch.softmax(logits / self.temperature, dim=-1)
             return torch.multinomial(probs, 1, generator=self.generator).view(-1)
         return logits.argmax(dim=-1)
+
+    def start(self, rows: list) -> None:
+        """Start computing the rows' first masks (on the worker thread: the prompts are read meanwhile)."""
+        if self.proc is not None:
+            self._pending = _pool().submit(self._timed, self.proc.fill, rows)
 
     def advance(self, active: list, tokens: list) -> None:
         """The rows still running took these tokens: feed them and start computing the next masks (on

@@ -121,11 +121,14 @@ class TransformersBackend(Backend):
             return self._batch_hf(reqs, prompts, proc, t0)
         rows = [Row(p, r.max_tokens, tuple(r.stop), getattr(r, "session", None)) for p, r in zip(prompts, reqs, strict=True)]
         picker = Picker(proc, self.temperature, self._generator)
-        decode(self.model, rows, self.sessions, picker, self._stopper(rows), self.pad_id,
-               self.prefill_together)
+        reading = decode(self.model, rows, self.sessions, picker, self._stopper(rows), self.pad_id,
+                         self.prefill_together)
         seconds = time.perf_counter() - t0
-        return [self._completion(r, row.tokens, len(row.prompt), proc, i, seconds, len(reqs), row.reused)
+        outs = [self._completion(r, row.tokens, len(row.prompt), proc, i, seconds, len(reqs), row.reused)
                 for i, (r, row) in enumerate(zip(reqs, rows, strict=True))]
+        for o in outs:
+            o.stats["read_seconds"] = round(reading, 4)
+        return outs
 
     def _stopper(self, rows: list):
         eos = self.tokenizer.eos_token_id
