@@ -168,17 +168,23 @@ def rollout(jobs: list, out: Path, workers: int = 1, spec: str = "spec", progres
     with ResultsFile.open(Path(out), spec_hash) as store:
         todo = [j for j in jobs if episode_key(_header(j, spec_hash)) not in store.done]
         res.present = len(jobs) - len(todo)
-        bar = Progress(len(todo), f"rollout -> {Path(out).name}") if progress else None
-        try:
-            for record in run_pool(todo, spec, workers):
-                _write(store, record, bar, res)
-        except Interrupted:
-            res.interrupted = True
-            raise
-        finally:
-            if bar:
-                bar.__exit__(None, None, None)
+        write_all(store, run_pool(todo, spec, workers), len(todo), res, out, progress)
     return res
+
+
+def write_all(store: ResultsFile, records, total: int, res: RolloutResult, out, progress: bool = True) -> None:
+    """Append each record as it comes (duplicates skipped), with a progress bar over `total`; on
+    `Interrupted` mark `res` and re-raise (what was written stays)."""
+    bar = Progress(total, f"rollout -> {Path(out).name}") if progress else None
+    try:
+        for record in records:
+            _write(store, record, bar, res)
+    except Interrupted:
+        res.interrupted = True
+        raise
+    finally:
+        if bar:
+            bar.__exit__(None, None, None)
 
 
 def _write(store: ResultsFile, record: dict, bar, res: RolloutResult) -> None:

@@ -17,9 +17,8 @@ from pathlib import Path
 from ..harness.episode import Episode, iter_batch
 from ..harness.record import EpisodeRecord
 from ..harness.results import ResultsFile, episode_key
-from ..harness.rollout import RolloutResult, _write
-from ..harness.workers import Interrupted, run_stream_pool
-from ..progress import Progress
+from ..harness.rollout import RolloutResult, write_all
+from ..harness.workers import run_stream_pool
 from ..runtime.env import MAX_STEPS, Env
 
 
@@ -92,17 +91,9 @@ def rollout_llm(jobs, out: Path, domain, policy, make_user, batch: int = 16, pro
 
         todo = [j for j in dict.fromkeys(jobs) if not done(j)]
         res.present = len(set(jobs)) - len(todo)
-        bar = Progress(len(todo), f"rollout -> {Path(out).name}") if progress else None
-        try:
-            def work(js):
-                return run_batched(js, domain, policy, make_user, batch, config, steps)
 
-            for rec in run_stream_pool(todo, workers, work):
-                _write(store, rec, bar, res)
-        except Interrupted:
-            res.interrupted = True
-            raise
-        finally:
-            if bar:
-                bar.__exit__(None, None, None)
+        def work(js):
+            return run_batched(js, domain, policy, make_user, batch, config, steps)
+
+        write_all(store, run_stream_pool(todo, workers, work), len(todo), res, out, progress)
     return res
