@@ -82,13 +82,9 @@ def apply_bitmask(logits: torch.Tensor, bitmask: torch.Tensor, rows) -> None:
     if not rows:
         return
     idx = torch.tensor(rows, dtype=torch.long)
-    allowed = ((bitmask[idx].unsqueeze(-1) >> _BITS) & 1).bool().reshape(len(rows), -1)
-    vocab = logits.shape[1]
-    if allowed.shape[1] < vocab:
-        allowed = torch.nn.functional.pad(allowed, (0, vocab - allowed.shape[1]), value=False)
-    allowed = allowed[:, :vocab].to(logits.device)
-    sub = logits[idx.to(logits.device)]
-    logits[idx.to(logits.device)] = sub.masked_fill(~allowed, float("-inf"))
+    allowed = unpack_bits(bitmask[idx], logits.shape[1]).to(logits.device)
+    idx = idx.to(logits.device)
+    logits[idx] = logits[idx].masked_fill(~allowed, float("-inf"))
 
 
 def closing_tokens(tokenizer, eos_id: int) -> torch.Tensor:

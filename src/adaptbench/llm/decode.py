@@ -23,6 +23,7 @@ little wall time beyond the forward pass.
 from __future__ import annotations
 
 import os
+import time
 from collections import OrderedDict
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
@@ -52,7 +53,6 @@ class Row:
     session: str | None = None
     tokens: list = field(default_factory=list)
     reused: int = 0  # prompt tokens read from the session's cache
-    done: bool = False
 
 
 class Sessions:
@@ -83,9 +83,6 @@ class Sessions:
         """Forget a session."""
         self._items.pop(key, None)
 
-    def clear(self) -> None:
-        """Forget every session."""
-        self._items.clear()
 
 
 def common_prefix(a: list, b: list) -> int:
@@ -254,8 +251,6 @@ def decode(model, rows: list, sessions: Sessions, picker, stopped, pad_id: int =
     `stopped(row_index, row) -> bool` says a row is over after its newest token (EOS, stop string,
     limit). Sessions get their rows' caches back. `together`: see `prefill_rows`. Returns the seconds
     spent reading the prompts (the rest is decoding)."""
-    import time
-
     t0 = time.perf_counter()
     picker.start(list(range(len(rows))))  # the first masks need no prompt: computed while the prompts are read
     first, layers = zip(*prefill_rows(model, rows, sessions, pad_id, together), strict=True)
@@ -271,7 +266,6 @@ def decode(model, rows: list, sessions: Sessions, picker, stopped, pad_id: int =
         for k, i in enumerate(active):
             rows[i].tokens.append(int(picked[k]))
             if stopped(i, rows[i]):
-                rows[i].done = True
                 n = lengths[i] + len(rows[i].tokens) - 1  # prompt and generated tokens read so far
                 if rows[i].session is not None and sessions.limit > 0:
                     sessions.put(rows[i].session, rows[i].prompt + rows[i].tokens[:-1],
@@ -367,8 +361,6 @@ class Picker:
         return self.proc.fill(active)
 
     def _timed(self, fn, *args):
-        import time
-
         t0 = time.perf_counter()
         try:
             return fn(*args)
