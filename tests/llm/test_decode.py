@@ -65,10 +65,13 @@ def _one_by_one_with_generate(backend, reqs):
     return [o.text for o in out]
 
 
-@pytest.mark.parametrize("constrained", [False, True])
-def test_batched_rows_match_model_generate_one_at_a_time(domain, sharp, constrained):
+@pytest.mark.parametrize("constrained,overlap", [(False, None), (True, None), (True, 1)])
+def test_batched_rows_match_model_generate_one_at_a_time(domain, sharp, constrained, overlap, monkeypatch):
+    """Fast-forwarding forced tokens (overlap None) and masks computed during the forward pass
+    (`overlap_rows` 1) both generate what `model.generate` does."""
     from adaptbench.llm.backend import Request
 
+    monkeypatch.setattr(sharp, "overlap_rows", overlap)
     g = _grammar(domain) if constrained else None
     reqs = [Request(p, g, (), 12 + 3 * i) for i, p in enumerate(_prompts(domain, sharp))]
     assert len({len(sharp.encode(r.prompt)) for r in reqs}) == len(reqs)  # rows of different lengths
@@ -77,6 +80,8 @@ def test_batched_rows_match_model_generate_one_at_a_time(domain, sharp, constrai
     assert [c.text for c in ours] == _one_by_one_with_generate(sharp, reqs)
     if constrained:
         assert all(c.accepted for c in ours)
+        forced = sum(c.stats["forced_tokens"] for c in ours)
+        assert forced > 0 if overlap is None else forced == 0  # forced tokens taken without a forward pass
 
 
 def test_a_session_reads_only_new_tokens_and_generates_the_same(domain, tiny):
@@ -85,14 +90,17 @@ def test_a_session_reads_only_new_tokens_and_generates_the_same(domain, tiny):
     cached, fresh = _sharp(tiny), _sharp(tiny, sessions=0)
     g = _grammar(domain)
     text = _prompts(domain, cached, 1)[0]
+    forced = 0
     for step in range(4):
         a = cached.generate([Request(text, g, (), 16, session="ep")])[0]
         b = fresh.generate([Request(text, g, (), 16, session="ep")])[0]
         assert a.text == b.text
+        forced += a.stats["forced_tokens"]
         assert b.stats["cached_tokens"] == 0
         if step:  # everything before this step's new turn came from the cache
             assert a.stats["cached_tokens"] > a.prompt_tokens - 40
         text = text + a.text + "<|end|>\n<|user|>\nObservation: nothing happens.<|end|>\n<|assistant|>\n"
+    assert forced > 0  # a step read forced tokens together, and the next step reused that cache
     assert len(cached.sessions) == 1
     cached.release("ep")
     assert len(cached.sessions) == 0

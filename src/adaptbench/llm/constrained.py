@@ -18,6 +18,7 @@ import time
 
 import llguidance
 import llguidance.hf
+import numpy as np
 import torch
 from llguidance.torch import allocate_token_bitmask, fill_next_token_bitmask, fill_next_token_bitmask_par
 from transformers import LogitsProcessor
@@ -55,7 +56,8 @@ class Matchers:
 def executor() -> llguidance.LLExecutor:
     """The process's llguidance executor (computes the rows' masks in parallel)."""
     if not _EXECUTOR:
-        _EXECUTOR.append(llguidance.LLExecutor())
+        spare = (os.cpu_count() or 2) - torch.get_num_threads()  # cores the model's threads leave free
+        _EXECUTOR.append(llguidance.LLExecutor(num_threads=max(1, min(32, spare))))
     return _EXECUTOR[0]
 
 
@@ -115,6 +117,7 @@ class GrammarProcessor(LogitsProcessor):
                 raise ValueError(f"grammar of row {i} rejected by llguidance: {m.get_error()}")
         self.eos_id = eos_id
         self.bitmask = allocate_token_bitmask(len(grammars), vocab_size)
+        self.vocab = vocab_size
         self.limits = list(limits) if limits is not None else [None] * len(grammars)
         self.closing, self.reserve = closing, reserve
         self.steps = 0
@@ -166,13 +169,18 @@ class GrammarProcessor(LogitsProcessor):
         self.mask_seconds += time.perf_counter() - t0
         return scores
 
-    def _close(self, rows, scores: torch.Tensor, step: int | None = None, at=None) -> None:
+    def _near_limit(self, row: int, step) -> bool:
+        """Whether the row is in its last `reserve` tokens (`step`: the index of the token about to be
+        chosen, one for all rows or by row)."""
+        limit = self.limits[row]
+        return limit is not None and limit - (step[row] if isinstance(step, dict) else step) <= self.reserve
+
+    def _close(self, rows, scores: torch.Tensor, step=None, at=None) -> None:
         if self.closing is None:
             return
         step = self.steps if step is None else step
         for i in rows:
-            limit = self.limits[i]
-            if limit is None or limit - step > self.reserve:
+            if not self._near_limit(i, step):
                 continue
             r = i if at is None else at[i]
             keep = self.closing.to(scores.device)
@@ -186,26 +194,40 @@ class GrammarProcessor(LogitsProcessor):
     # list, logits rows by their place among the rows still running.
 
     def feed(self, rows, tokens) -> None:
-        """Feed each row its newest token."""
+        """Feed each row its newest token (the constrained rows' in one call that drops the GIL)."""
+        batch = []
         for i, t in zip(rows, tokens, strict=True):
-            if not self.finished[i]:
-                if t == self.eos_id:
-                    self.finished[i] = True
-                self._feed(i, t)
+            if self.finished[i]:
+                continue
+            self.finished[i] = t == self.eos_id
+            self.consumed[i] += 1
+            if self.matchers[i] is not None and not self.errors[i]:
+                batch.append((i, t))
+        if len(batch) == 1:  # one row: no hand-over to the executor's threads
+            ok = [self.matchers[batch[0][0]].consume_token(batch[0][1])]
+        else:
+            ok = executor().consume_token_par([(self.matchers[i], t) for i, t in batch]) if batch else []
+        for (i, _), good in zip(batch, ok, strict=True):
+            if not good:
+                self.errors[i] = self.matchers[i].get_error() or "token rejected"
+
+    def live(self, rows) -> list:
+        """The rows still constrained (a grammar, not finished, no error)."""
+        return [i for i in rows if self.matchers[i] is not None and not self.finished[i] and not self.errors[i]]
 
     def fill(self, rows) -> list:
         """Compute the next-token masks of the rows still constrained; returns those rows."""
-        live = [(self.matchers[i], i) for i in rows
-                if self.matchers[i] is not None and not self.finished[i] and not self.errors[i]]
+        live = [(self.matchers[i], i) for i in self.live(rows)]
         if len(live) == 1:  # one row: no hand-over to the executor's threads
             fill_next_token_bitmask(live[0][0], self.bitmask, live[0][1])
         elif live:
             fill_next_token_bitmask_par(executor(), live, self.bitmask)
         return [i for _, i in live]
 
-    def mask(self, logits: torch.Tensor, rows, live, step: int) -> None:
+    def mask(self, logits: torch.Tensor, rows, live, step) -> None:
         """Mask `logits` (row k is request row `rows[k]`) with the masks `fill` computed for `live`, and
-        steer rows near their token limit to close."""
+        steer rows near their token limit to close (`step`: the index of the token being chosen, one
+        for all rows or a dict by row)."""
         if not live:
             return
         vocab = logits.shape[1]
@@ -219,10 +241,27 @@ class GrammarProcessor(LogitsProcessor):
             at = {i: k for k, i in enumerate(rows)}
             idx = torch.tensor([at[i] for i in live], dtype=torch.long, device=logits.device)
             logits[idx] = logits[idx].masked_fill(forbidden, float("-inf"))
-        if self.closing is not None and any(lim is not None and lim - step <= self.reserve
-                                            for lim in (self.limits[i] for i in live)):
+        if self.closing is not None and any(self._near_limit(i, step) for i in live):
             self._close(live, logits, step, {i: k for k, i in enumerate(rows)})
         self.masked_steps += 1
+
+    def forced(self, live) -> dict:
+        """{row: token} for the rows of `live` (rows `fill` just computed) whose mask allows exactly one
+        token: the grammar leaves no choice, so the token is taken without asking the model (llguidance
+        calls it fast-forwarding). Choosing among one allowed token, greedy or sampled, gives it anyway:
+        only the model's forward pass for it is saved."""
+        if not live:
+            return {}
+        words = self.bitmask.numpy()[live]
+        one = (words != 0).sum(axis=1) == 1  # exactly one word set, and in it one bit
+        out = {}
+        for k in np.flatnonzero(one):
+            w = int(words[k][words[k] != 0][0]) & 0xFFFFFFFF
+            if w & (w - 1) == 0:
+                token = 32 * int(np.flatnonzero(words[k])[0]) + w.bit_length() - 1
+                if token < self.vocab:
+                    out[live[k]] = token
+        return out
 
     def accepted(self, row: int) -> bool:
         """Whether row `row`'s matcher ended in an accepting state (True for unconstrained rows)."""

@@ -53,6 +53,7 @@ class Row:
     session: str | None = None
     tokens: list = field(default_factory=list)
     reused: int = 0  # prompt tokens read from the session's cache
+    forced: int = 0  # generated tokens the grammar forced (taken without a forward pass of their own)
 
 
 class Sessions:
@@ -217,9 +218,10 @@ class BufferLayer(DynamicLayer):
                            dim=2)
         return keys, values
 
-    def row(self, k: int, n: int) -> tuple:
-        """Row k's last n cached positions, as a batch of one (a copy)."""
-        return self.keys[k:k + 1, :, self.n - n:].clone(), self.values[k:k + 1, :, self.n - n:].clone()
+    def row(self, k: int, where: torch.Tensor) -> tuple:
+        """Row k's cached positions `where` (its real ones, padding left out), as a batch of one (a copy)."""
+        where = where.to(self.keys.device)
+        return self.keys[k:k + 1, :, where], self.values[k:k + 1, :, where]
 
 
 def _stack(model, rows_layers: list, lengths: list, room: int) -> tuple:
@@ -246,54 +248,94 @@ def _stack(model, rows_layers: list, lengths: list, room: int) -> tuple:
 
 def decode(model, rows: list, sessions: Sessions, picker, stopped, pad_id: int = 0, together: bool = True) -> float:
     """Generate every row's tokens in place (`row.tokens`). `picker.pick(logits [B, V], active row
-    indices, step) -> token ids [B]` masks and picks the next token of each active row (the grammar
-    acts there) and `picker.advance(active, tokens)` hears which tokens the rows still running took;
-    `stopped(row_index, row) -> bool` says a row is over after its newest token (EOS, stop string,
-    limit). Sessions get their rows' caches back. `together`: see `prefill_rows`. Returns the seconds
-    spent reading the prompts (the rest is decoding)."""
+    indices, steps) -> token ids [B]` masks and picks the next token of each active row (the grammar
+    acts there) and `picker.advance(rows, tokens) -> {row: token}` hears which tokens those rows took
+    and names the rows whose grammar now allows a single token, which they take without a forward pass
+    of their own (a row's tokens of one step are read together at the next); `stopped(row_index, row)
+    -> bool` says a row is over after its newest token (EOS, stop string, limit). Sessions get their
+    rows' caches back. `together`: see `prefill_rows`. Returns the seconds spent reading the prompts
+    (the rest is decoding)."""
     t0 = time.perf_counter()
     picker.start(list(range(len(rows))))  # the first masks need no prompt: computed while the prompts are read
     first, layers = zip(*prefill_rows(model, rows, sessions, pad_id, together), strict=True)
     reading = time.perf_counter() - t0
-    lengths = [len(r.prompt) for r in rows]
+    read = [len(r.prompt) for r in rows]  # each row's tokens in the cache
     active = list(range(len(rows)))
     logits = torch.stack(first)
-    cache, mask = _stack(model, list(layers), lengths, max(r.max_tokens for r in rows))
-    step = 0
+    cache, mask = _stack(model, list(layers), read, max(r.max_tokens for r in rows))
     while active:
-        picked = picker.pick(logits, active, step)
-        still = []
+        picked = picker.pick(logits, active, {i: len(rows[i].tokens) for i in active}).tolist()
         for k, i in enumerate(active):
-            rows[i].tokens.append(int(picked[k]))
-            if stopped(i, rows[i]):
-                n = lengths[i] + len(rows[i].tokens) - 1  # prompt and generated tokens read so far
-                if rows[i].session is not None and sessions.limit > 0:
-                    sessions.put(rows[i].session, rows[i].prompt + rows[i].tokens[:-1],
-                                 [layer.row(k, n) for layer in cache.layers])
-            else:
-                still.append(k)
-        if not still:
-            break
-        if len(still) < len(active):
-            idx = torch.tensor(still, dtype=torch.long, device=mask.device)
+            rows[i].tokens.append(picked[k])
+        running = _take_forced(rows, [i for i in active if not stopped(i, rows[i])], picker, stopped)
+        if len(running) < len(active):
+            _store(rows, active, running, read, cache, mask, sessions)
+            if not running:
+                break
+            keep = torch.tensor([k for k, i in enumerate(active) if i in running], dtype=torch.long,
+                                device=mask.device)
             for layer in cache.layers:
-                layer.select(idx)
-            mask, picked = mask[idx], picked[idx.to(picked.device)]
-            active = [active[k] for k in still]
-        picker.advance(active, picked.tolist())
-        logits, mask = _forward(model, cache, mask, picked, [lengths[i] + len(rows[i].tokens) - 1 for i in active])
-        step += 1
+                layer.select(keep)
+            mask, active = mask[keep], [i for i in active if i in running]
+        new = [rows[i].tokens[read[i] - len(rows[i].prompt):] for i in active]
+        logits, mask = _forward(model, cache, mask, new, [read[i] for i in active], pad_id)
+        for i, t in zip(active, new, strict=True):
+            read[i] += len(t)
     return reading
 
 
-def _forward(model, cache, mask: torch.Tensor, tokens: torch.Tensor, positions: list) -> tuple:
-    """One decoding step: each active row reads its newest token at its own position."""
-    mask = torch.cat([mask, mask.new_ones((mask.shape[0], 1))], dim=1)
-    ids = tokens.view(-1, 1).to(model.device)
-    pos = torch.tensor(positions, dtype=torch.long, device=model.device).view(-1, 1)
-    width = cache.get_seq_length()
+def _take_forced(rows: list, running: list, picker, stopped) -> set:
+    """Feed the running rows' newest tokens to the picker and append the tokens their grammars force,
+    as long as some row has one; returns the rows still running."""
+    running = set(running)
+    chain = sorted(running)
+    while chain:
+        forced = picker.advance(chain, [rows[i].tokens[-1] for i in chain])
+        chain = []
+        for i, token in forced.items():
+            rows[i].tokens.append(token)
+            rows[i].forced += 1
+            if stopped(i, rows[i]):
+                running.discard(i)
+            else:
+                chain.append(i)
+    return running
+
+
+def _store(rows: list, active: list, running: set, read: list, cache, mask: torch.Tensor, sessions: Sessions) -> None:
+    """Give the sessions of the rows that stopped their caches (the tokens read so far)."""
+    if sessions.limit <= 0:
+        return
+    for k, i in enumerate(active):
+        if i in running or rows[i].session is None:
+            continue
+        where = mask[k].nonzero().view(-1)
+        sessions.put(rows[i].session, (rows[i].prompt + rows[i].tokens)[:read[i]],
+                     [layer.row(k, where) for layer in cache.layers])
+
+
+def _forward(model, cache, mask: torch.Tensor, new: list, read: list, pad_id: int) -> tuple:
+    """One decoding pass: each active row reads its new tokens (most often one; more when its grammar
+    forced some) at its own positions, right-aligned and padded (masked) to the longest."""
+    width, most = cache.get_seq_length(), max(len(t) for t in new)
+    dev = model.device
+    if most == 1:
+        ids = torch.tensor(new, dtype=torch.long, device=dev)
+        pos = torch.tensor(read, dtype=torch.long, device=dev).view(-1, 1)
+        mask = torch.cat([mask, mask.new_ones((mask.shape[0], 1))], dim=1)
+    else:
+        ids = torch.full((len(new), most), pad_id, dtype=torch.long)
+        pos = torch.zeros((len(new), most), dtype=torch.long)
+        tail = torch.zeros((len(new), most), dtype=torch.long)
+        for k, (tokens, start) in enumerate(zip(new, read, strict=True)):
+            n = len(tokens)
+            ids[k, most - n:] = torch.tensor(tokens, dtype=torch.long)
+            pos[k, most - n:] = torch.arange(start, start + n)
+            tail[k, most - n:] = 1
+        ids, pos = ids.to(dev), pos.to(dev)
+        mask = torch.cat([mask, tail.to(mask.device)], dim=1)
     out = model(input_ids=ids, attention_mask=mask, position_ids=pos, past_key_values=cache, use_cache=True,
-                cache_position=torch.tensor([width], device=model.device))
+                cache_position=torch.arange(width, width + most, device=dev), logits_to_keep=1)
     return out.logits[:, -1].float(), mask
 
 
@@ -310,32 +352,36 @@ def loop_supported(model) -> bool:
 THREAD_ROWS = 4
 
 
-class _Done:
-    """A result computed in place (the `Future` interface `Picker.pick` waits on)."""
-
-    def __init__(self, value):
-        self.value = value
-
-    def result(self):
-        """The value."""
-        return self.value
-
-
 class Picker:
     """Masks and samples each step's tokens: greedy at temperature 0, else from the softmax at that
-    temperature (seeded generator). With a grammar processor, feeding step t's tokens and computing
-    step t+1's masks run on a worker thread while the model computes step t+1's forward pass."""
+    temperature (seeded generator). With a grammar processor, the rows' first masks are computed on a
+    worker thread while the prompts are read. Later masks are computed one of two ways:
 
-    def __init__(self, proc, temperature: float = 0.0, generator: torch.Generator | None = None):
+    - fast-forward (the default): as the rows take their tokens (`advance`), which also finds the
+      tokens a grammar forces, so the loop takes them without a forward pass of their own;
+    - overlapped, from `overlap_rows` rows up: on the worker thread while the model computes the next
+      forward pass (llguidance drops the GIL), no token forced. On a CPU a batch's pass over several
+      new tokens a row costs about as much as as many one-token passes, so there fast-forwarding
+      saves little, and hiding the grammar behind the pass is worth more (measured in bench_llm).
+    """
+
+    def __init__(self, proc, temperature: float = 0.0, generator: torch.Generator | None = None,
+                 overlap_rows: int | None = None):
         self.proc, self.temperature, self.generator = proc, temperature, generator
+        self.overlap_rows = overlap_rows
         self._pending = None
 
-    def pick(self, logits: torch.Tensor, active: list, step: int) -> torch.Tensor:
-        """The next token of each active row (`logits` row k is request row `active[k]`)."""
+    def pick(self, logits: torch.Tensor, active: list, steps) -> torch.Tensor:
+        """The next token of each active row (`logits` row k is request row `active[k]`; `steps`: each
+        row's index of the token being chosen, for steering rows near their limit to close)."""
         if self.proc is not None:
-            live = self._pending.result() if self._pending is not None else self._timed(self.proc.fill, active)
-            self._pending = None
-            self.proc.mask(logits, active, live, step)
+            if self._pending is not None:
+                live, self._pending = self._pending.result(), None
+            else:
+                live = self.proc.live(active)
+            t0 = time.perf_counter()
+            self.proc.mask(logits, active, live, steps)
+            self.proc.mask_seconds += time.perf_counter() - t0
         if self.temperature > 0:
             probs = torch.softmax(logits / self.temperature, dim=-1)
             return torch.multinomial(probs, 1, generator=self.generator).view(-1)
@@ -346,19 +392,19 @@ class Picker:
         if self.proc is not None:
             self._pending = _pool().submit(self._timed, self.proc.fill, rows)
 
-    def advance(self, active: list, tokens: list) -> None:
-        """The rows still running took these tokens: feed them and start computing the next masks (on
-        the worker thread from `THREAD_ROWS` rows up; for fewer, handing over costs more than it saves)."""
+    def advance(self, rows: list, tokens: list) -> dict:
+        """These rows took these tokens: feed them and compute the rows' next masks; returns {row:
+        token} for the rows whose grammar now allows a single token (none when overlapping)."""
         if self.proc is None:
-            return
-        if len(active) >= THREAD_ROWS:
-            self._pending = _pool().submit(self._timed, self._feed_fill, active, tokens)
-        else:
-            self._pending = _Done(self._timed(self._feed_fill, active, tokens))
+            return {}
+        if self.overlap_rows is not None and len(rows) >= self.overlap_rows:
+            self._pending = _pool().submit(self._timed, self._feed_fill, rows, tokens)
+            return {}
+        return self.proc.forced(self._timed(self._feed_fill, rows, tokens))
 
-    def _feed_fill(self, active: list, tokens: list) -> list:
-        self.proc.feed(active, tokens)
-        return self.proc.fill(active)
+    def _feed_fill(self, rows: list, tokens: list) -> list:
+        self.proc.feed(rows, tokens)
+        return self.proc.fill(rows)
 
     def _timed(self, fn, *args):
         t0 = time.perf_counter()

@@ -21,7 +21,7 @@ from transformers import (
 from . import chat
 from .backend import Backend, Completion, Scored, cut_at_stop
 from .constrained import GrammarProcessor, Matchers, closing_tokens, ll_tokenizer
-from .decode import Picker, Row, Sessions, decode, loop_supported
+from .decode import THREAD_ROWS, Picker, Row, Sessions, decode, loop_supported
 
 DTYPES = {"auto": "auto", "float32": torch.float32, "bfloat16": torch.bfloat16, "float16": torch.float16}
 
@@ -86,6 +86,7 @@ class TransformersBackend(Backend):
             else self.tokenizer.eos_token_id
         self.loop = loop_supported(self.model)
         self.prefill_together = device != "cpu"  # see decode.prefill_rows
+        self.overlap_rows = THREAD_ROWS if device == "cpu" else None  # see decode.Picker
         self.sessions = Sessions(2 * batch_size if sessions is None else sessions)
         self._generator = torch.Generator(device=device).manual_seed(seed)
 
@@ -120,14 +121,15 @@ class TransformersBackend(Backend):
         if not self.loop:
             return self._batch_hf(reqs, prompts, proc, t0)
         rows = [Row(p, r.max_tokens, tuple(r.stop), getattr(r, "session", None)) for p, r in zip(prompts, reqs, strict=True)]
-        picker = Picker(proc, self.temperature, self._generator)
+        picker = Picker(proc, self.temperature, self._generator, self.overlap_rows)
         reading = decode(self.model, rows, self.sessions, picker, self._stopper(rows), self.pad_id,
                          self.prefill_together)
         seconds = time.perf_counter() - t0
         outs = [self._completion(r, row.tokens, len(row.prompt), proc, i, seconds, len(reqs), row.reused)
                 for i, (r, row) in enumerate(zip(reqs, rows, strict=True))]
-        for o in outs:
+        for o, row in zip(outs, rows, strict=True):
             o.stats["read_seconds"] = round(reading, 4)
+            o.stats["forced_tokens"] = row.forced
         return outs
 
     def _stopper(self, rows: list):
