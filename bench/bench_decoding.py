@@ -1,7 +1,8 @@
 """Constrained decoding engines side by side on the tiny model (CPU), one run, the same prompts and the
 same state grammar, one generation at a time (greedy, `--tokens` new tokens at most):
 
-- unconstrained generation (the `transformers` backend's loop, `llm/decode.py`, no grammar);
+- unconstrained generation (the `transformers` backend's loop, `llm/decode.py`, no grammar), each
+  request stopped after as many tokens as its constrained completion took;
 - ours: the `transformers` backend's loop with llguidance masks (`llm/constrained.py`);
 - the same two on `model.generate` (our llguidance logits processor there): the loop every competitor
   runs in, so that "ours / engine" compares grammar engines, not generation loops;
@@ -115,20 +116,28 @@ class Engine:
         self.compile_seconds = 0.0  # grammar set-up inside `generate`, left out of tokens/s
 
 
-def _ours(backend, constrained: bool):
+def _free(req, lengths: dict):
+    """The request without its grammar, limited to the tokens the grammar's completion took (an action
+    ends after ~9 tokens; a free row running to the limit would spread the call's fixed cost, reading
+    the prompt, over more tokens and flatter the unconstrained rate)."""
+    return type(req)(req.prompt, None, (), lengths.get(req.prompt, req.max_tokens))
+
+
+def _ours(backend, constrained: bool, lengths: dict):
     def gen(req):
-        r = req if constrained else type(req)(req.prompt, None, (), req.max_tokens)
+        r = req if constrained else _free(req, lengths)
         out = backend.generate([r])[0]
         return out.text, out.tokens
     return Engine("llguidance (ours)" if constrained else "unconstrained", gen)
 
 
-def _ours_on_generate(backend, constrained: bool):
+def _ours_on_generate(backend, constrained: bool, lengths: dict):
     from adaptbench.llm.constrained import GrammarProcessor, closing_tokens
 
     eos = backend.tokenizer.eos_token_id
 
     def gen(req):
+        req = req if constrained else _free(req, lengths)
         procs = [GrammarProcessor(backend.matchers, [req.grammar], eos, backend.vocab, [req.max_tokens],
                                   closing_tokens(backend.tokenizer, eos))] if constrained else []
         return _hf_generate(backend, req, procs)
@@ -225,10 +234,11 @@ def _outlines(backend):
 COMPETITORS = {"transformers-CFG": ("transformers_cfg", _transformers_cfg), "outlines (CFG)": ("outlines", _outlines)}
 
 
-def engines(backend) -> tuple:
-    """The engines that could be built, and (name, reason) for those skipped."""
-    built, skipped = [_ours(backend, False), _ours(backend, True), _ours_on_generate(backend, False),
-                      _ours_on_generate(backend, True)], []
+def engines(backend, lengths: dict) -> tuple:
+    """The engines that could be built, and (name, reason) for those skipped (`lengths`: by prompt, the
+    tokens of its constrained completion, where the unconstrained rows stop)."""
+    built, skipped = [_ours(backend, False, lengths), _ours(backend, True, lengths),
+                      _ours_on_generate(backend, False, lengths), _ours_on_generate(backend, True, lengths)], []
     for name, (module, make) in COMPETITORS.items():
         if importlib.util.find_spec(module) is None:
             skipped.append((name, f"not installed (pip install {module.replace('_', '-')})"))
@@ -267,7 +277,8 @@ def run(model: str | None, n: int, max_tokens: int) -> tuple:
     backend = TransformersBackend(model, batch_size=1)
     reqs = [type(r)(r.prompt, r.grammar, (), max_tokens) for r in _requests(domain, backend, n, True)]
     parser = runtime_index(domain).parser
-    built, skipped = engines(backend)
+    lengths = {r.prompt: max(1, c.tokens) for r, c in zip(reqs, backend.generate(reqs), strict=True)}
+    built, skipped = engines(backend, lengths)
     rows = []
     for e in built:
         try:

@@ -65,13 +65,10 @@ def _one_by_one_with_generate(backend, reqs):
     return [o.text for o in out]
 
 
-@pytest.mark.parametrize("constrained,overlap", [(False, None), (True, None), (True, 1)])
-def test_batched_rows_match_model_generate_one_at_a_time(domain, sharp, constrained, overlap, monkeypatch):
-    """Fast-forwarding forced tokens (overlap None) and masks computed during the forward pass
-    (`overlap_rows` 1) both generate what `model.generate` does."""
+@pytest.mark.parametrize("constrained", [False, True])
+def test_batched_rows_match_model_generate_one_at_a_time(domain, sharp, constrained):
     from adaptbench.llm.backend import Request
 
-    monkeypatch.setattr(sharp, "overlap_rows", overlap)
     g = _grammar(domain) if constrained else None
     reqs = [Request(p, g, (), 12 + 3 * i) for i, p in enumerate(_prompts(domain, sharp))]
     assert len({len(sharp.encode(r.prompt)) for r in reqs}) == len(reqs)  # rows of different lengths
@@ -80,8 +77,7 @@ def test_batched_rows_match_model_generate_one_at_a_time(domain, sharp, constrai
     assert [c.text for c in ours] == _one_by_one_with_generate(sharp, reqs)
     if constrained:
         assert all(c.accepted for c in ours)
-        forced = sum(c.stats["forced_tokens"] for c in ours)
-        assert forced > 0 if overlap is None else forced == 0  # forced tokens taken without a forward pass
+        assert sum(c.stats["forced_tokens"] for c in ours) > 0  # forced tokens taken without a forward pass
 
 
 def test_a_session_reads_only_new_tokens_and_generates_the_same(domain, tiny):
@@ -188,3 +184,37 @@ def test_a_tokenizer_whose_pieces_do_not_add_up_is_encoded_whole():
     text = "hello<s>world"
     assert encode(tok, text) == tok(text)["input_ids"]
     assert tok.__dict__["_adapt_encoder"]["pieces"] is None
+
+
+def test_grouped_heads_left_to_sdpa_give_the_same_logits_and_the_switch_is_restored(tiny, monkeypatch):
+    """A masked pass over several new tokens (padding inside, a cache before) with torch's SDPA handling
+    the grouped key/value heads equals transformers' own way (repeating them)."""
+    import os
+
+    import torch
+    from transformers import DynamicCache
+
+    from adaptbench.llm.decode import GQA_FLAG, grouped_heads
+
+    monkeypatch.delenv(GQA_FLAG, raising=False)
+    model = _sharp(tiny).model
+    assert model.config.num_key_value_heads < model.config.num_attention_heads  # the tiny model groups heads
+    g = torch.Generator().manual_seed(0)
+    ids = torch.randint(0, 3000, (3, 40), generator=g)
+    mask = torch.ones(3, 40, dtype=torch.long)
+    mask[1, :8], mask[2, 30:33] = 0, 0
+    pos = (mask.cumsum(-1) - 1).clamp(min=0)
+
+    def logits():
+        with torch.no_grad():
+            cache = DynamicCache(config=model.config)
+            model(input_ids=ids[:, :30], attention_mask=mask[:, :30], position_ids=pos[:, :30], past_key_values=cache)
+            return model(input_ids=ids[:, 30:], attention_mask=mask, position_ids=pos[:, 30:], past_key_values=cache,
+                         cache_position=torch.arange(30, 40)).logits
+
+    plain = logits()
+    with grouped_heads(model):
+        assert os.environ[GQA_FLAG] == "1"
+        grouped = logits()
+    assert GQA_FLAG not in os.environ
+    assert torch.allclose(plain, grouped, atol=1e-5)

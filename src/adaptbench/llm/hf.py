@@ -21,7 +21,7 @@ from transformers import (
 from . import chat
 from .backend import Backend, Completion, Scored, cut_at_stop
 from .constrained import GrammarProcessor, Matchers, closing_tokens, ll_tokenizer
-from .decode import THREAD_ROWS, Picker, Row, Sessions, decode, loop_supported
+from .decode import Picker, Row, Sessions, decode, loop_supported
 
 DTYPES = {"auto": "auto", "float32": torch.float32, "bfloat16": torch.bfloat16, "float16": torch.float16}
 
@@ -86,7 +86,6 @@ class TransformersBackend(Backend):
             else self.tokenizer.eos_token_id
         self.loop = loop_supported(self.model)
         self.prefill_together = device != "cpu"  # see decode.prefill_rows
-        self.overlap_rows = THREAD_ROWS if device == "cpu" else None  # see decode.Picker
         self.sessions = Sessions(2 * batch_size if sessions is None else sessions)
         self._generator = torch.Generator(device=device).manual_seed(seed)
 
@@ -121,7 +120,7 @@ class TransformersBackend(Backend):
         if not self.loop:
             return self._batch_hf(reqs, prompts, proc, t0)
         rows = [Row(p, r.max_tokens, tuple(r.stop), getattr(r, "session", None)) for p, r in zip(prompts, reqs, strict=True)]
-        picker = Picker(proc, self.temperature, self._generator, self.overlap_rows)
+        picker = Picker(proc, self.temperature, self._generator)
         reading = decode(self.model, rows, self.sessions, picker, self._stopper(rows), self.pad_id,
                          self.prefill_together)
         seconds = time.perf_counter() - t0
