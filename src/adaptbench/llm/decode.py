@@ -2,22 +2,24 @@
 episode's key/value cache kept between its steps.
 
     sessions = Sessions(limit=32)
-    rows = [Row(prompt_ids, grammar_matcher_or_None, max_tokens, stop, session="planner/juan/eggs/0")]
-    decode(model, rows, sessions, processor, sampler)
+    rows = [Row(prompt_ids, max_tokens=24, session="planner/juan/eggs/0"), ...]
+    decode(model, rows, sessions, Picker(grammar_processor_or_None), stopped)   # fills row.tokens
 
 An agent's prompt at step t+1 is its prompt at step t, the action it generated and one more turn
 (unless left-truncation dropped old history), so re-reading the whole prompt each step — what
 `model.generate` does — costs O(steps x prompt) per episode and dominates a small model's time. Here
 each row first reads only the tokens after the longest prefix it shares with its session's cached
 tokens (one forward pass per row over the new suffix), then all rows decode together: the rows'
-caches are left-padded into one batch cache, every step is one forward pass of one token per running
-row with explicit position ids, and a row leaves the batch when it stops. A row's cache (prompt and
+caches are left-padded into one batch cache, every step is one forward pass over each running row's
+new tokens with explicit position ids, and a row leaves the batch when it stops. A row's cache (prompt and
 generated tokens) is stored back under its session for the next step; `Sessions` keeps the most
 recently used `limit` of them.
 
-While the model computes step t+1's forward pass, a worker thread feeds step t's tokens to the rows'
-matchers and computes their next token masks (llguidance releases the GIL), so the grammar costs
-little wall time beyond the forward pass.
+The grammar acts between passes: after a row takes a token its matcher is fed and its next mask
+computed, and while that mask allows a single token (a literal the grammar spells out, EOS after a
+complete action) the row takes it without a pass of its own; a row's tokens of one step are read
+together at its next pass (right-aligned, padded and masked to the longest row). The rows' first masks,
+the costliest, are computed on a worker thread while the prompts are read (llguidance drops the GIL).
 """
 
 from __future__ import annotations
