@@ -107,10 +107,12 @@ class GrammarProcessor(LogitsProcessor):
     Free text is bounded by the token limit, not by the grammar (docs/grammar.md), so a row about to
     reach its limit (`limits`) is steered to close: in its last `reserve` steps only tokens that end
     an action (`closing`: EOS, a closing quote) are kept when the grammar allows any of them. Every
-    completion then parses, however long the model would have rambled."""
+    completion then parses, however long the model would have rambled. The reserve is 4 tokens: a
+    byte-level token can open a character of up to 4 UTF-8 bytes whose other bytes the grammar then
+    forces, up to 3 tokens in which no quote can close."""
 
     def __init__(self, matchers: Matchers, grammars, eos_id: int, vocab_size: int, limits=None, closing=None,
-                 reserve: int = 2):
+                 reserve: int = 4):
         self.matchers = [None if g is None else matchers.get(g) for g in grammars]
         for i, m in enumerate(self.matchers):
             if m is not None and m.is_error():
