@@ -58,3 +58,19 @@ def golden(request):
             return
         assert text == path.read_text(), f"{path} differs (pytest --update-golden to accept)"
     return check
+
+
+@pytest.fixture
+def cereal_steps_raise(monkeypatch):
+    """Every step of a cereal episode raises RuntimeError("boom") (the other tasks step normally): for
+    tests that one episode's failure becomes its own error and spares the rest."""
+    from adaptbench.runtime.env import Env
+
+    real = Env.step
+
+    def step(self, text):
+        if self.task.id == "cereal":
+            raise RuntimeError("boom")
+        return real(self, text)
+
+    monkeypatch.setattr(Env, "step", step)

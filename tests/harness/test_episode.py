@@ -212,17 +212,9 @@ def test_iter_batch_refills_slots_from_a_generator_and_matches_episodes_run_alon
         assert _texts(ep) == _texts(run_episode(AlwaysAsk(domain), _env(domain, persona, t, int(s))))
 
 
-def test_iter_batch_catch_turns_a_step_exception_into_that_episodes_error(domain, monkeypatch):
+def test_iter_batch_catch_turns_a_step_exception_into_that_episodes_error(domain, cereal_steps_raise):
     from adaptbench.harness.episode import iter_batch
 
-    real = Env.step
-
-    def step(self, text):
-        if self.task.id == "cereal":
-            raise RuntimeError("boom")
-        return real(self, text)
-
-    monkeypatch.setattr(Env, "step", step)
     persona = domain.personas[0].id
     envs = [(t, _env(domain, persona, t, 0)) for t in ("eggs", "cereal")]
     eps = {ep.id: ep for ep in iter_batch(NeverAsk(domain), envs, width=2, catch=True)}

@@ -108,10 +108,9 @@ def test_cli_errors_are_clear(tmp_path, capsys):
     assert main([*base[:2], "planner,oracle", *base[3:], "--model", str(tmp_path)]) == 2
 
 
-def test_an_episode_that_raises_becomes_an_error_record(domain, monkeypatch):
+def test_an_episode_that_raises_becomes_an_error_record(domain, cereal_steps_raise):
     from adaptbench.harness.policy import Decision, Policy
     from adaptbench.llm.rollout import run_batched
-    from adaptbench.runtime.env import Env
 
     class LookForEggs(Policy):
         name = "look"
@@ -119,14 +118,6 @@ def test_an_episode_that_raises_becomes_an_error_record(domain, monkeypatch):
         def act(self, view):
             return Decision("Look for eggs")
 
-    real = Env.step
-
-    def step(self, text):
-        if self.task.id == "cereal":
-            raise RuntimeError("boom")
-        return real(self, text)
-
-    monkeypatch.setattr(Env, "step", step)
     jobs = [Job("look", "juan", "eggs", 0), Job("look", "juan", "cereal", 0)]
     recs = {r["task"]: r for r in run_batched(jobs, domain, LookForEggs(), _offline, batch=2, steps=2)}
     assert recs["cereal"]["error"] == "RuntimeError: boom" and "traceback" in recs["cereal"]

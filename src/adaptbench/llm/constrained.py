@@ -254,15 +254,14 @@ class GrammarProcessor(LogitsProcessor):
         only the model's forward pass for it is saved."""
         if not live:
             return {}
-        words = self.bitmask.numpy()[live]
-        one = (words != 0).sum(axis=1) == 1  # exactly one word set, and in it one bit
+        words = self.bitmask.numpy()[live].view(np.uint32)
         out = {}
-        for k in np.flatnonzero(one):
-            w = int(words[k][words[k] != 0][0]) & 0xFFFFFFFF
-            if w & (w - 1) == 0:
-                token = 32 * int(np.flatnonzero(words[k])[0]) + w.bit_length() - 1
-                if token < self.vocab:
-                    out[live[k]] = token
+        for k in np.flatnonzero((words != 0).sum(axis=1) == 1):  # one word with a bit set...
+            at = int(np.flatnonzero(words[k])[0])
+            bits = int(words[k, at])
+            token = 32 * at + bits.bit_length() - 1
+            if bits & (bits - 1) == 0 and token < self.vocab:  # ...and one bit in it, a token of the model
+                out[live[k]] = token
         return out
 
     def accepted(self, row: int) -> bool:
