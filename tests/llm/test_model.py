@@ -94,6 +94,7 @@ def test_unconstrained_rows_and_stops(backend):
     assert outs[0].tokens == 5 and outs[0].accepted is None
     assert "e" not in outs[1].text
     assert outs[2].text == "Declare Done" and outs[2].accepted
+    assert 1 <= outs[2].stats["forced_tokens"] < outs[2].tokens  # a grammar of one sentence: the first token is picked, later ones forced
 
 
 def test_bad_grammar_is_reported(backend):
