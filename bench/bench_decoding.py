@@ -10,7 +10,7 @@ same state grammar, one generation at a time (greedy, `--tokens` new tokens at m
   to its EBNF by `lark_to_ebnf`;
 - outlines 1.x's default CFG path (`outlines.types.CFG` on the Lark text; its backend is llguidance).
 
-    python bench/bench_decoding.py [--model DIR] [--n 24] [--tokens 24]
+    python bench/bench_decoding.py [--model DIR] [--n 24] [--tokens 24] [--device cuda] [--dtype bfloat16]
 
 transformers-CFG and outlines are not dependencies of the project: install them for this benchmark
 only (`pip install transformers-cfg outlines`). A competitor that is not installed, or that fails
@@ -204,7 +204,7 @@ def _hf_generate(backend, req, processors):
     import torch
     from transformers import LogitsProcessorList
 
-    ids = torch.tensor([backend.encode(req.prompt)])
+    ids = torch.tensor([backend.encode(req.prompt)], device=backend.model.device)
     with torch.no_grad():
         gen = backend.model.generate(input_ids=ids, attention_mask=torch.ones_like(ids), max_new_tokens=req.max_tokens,
                                      logits_processor=LogitsProcessorList(processors), do_sample=False,
@@ -264,7 +264,7 @@ def measure(engine, reqs, parser) -> dict:
             "compile_s": engine.compile_seconds / len(reqs)}
 
 
-def run(model: str | None, n: int, max_tokens: int) -> tuple:
+def run(model: str | None, n: int, max_tokens: int, device: str = "cpu", dtype: str = "auto") -> tuple:
     """(rows of results, skipped competitors)."""
     from adaptbench.compiler import load_domain
     from adaptbench.llm.hf import TransformersBackend
@@ -274,7 +274,7 @@ def run(model: str | None, n: int, max_tokens: int) -> tuple:
     domain = load_domain(SPEC)
     if model is None:
         model = str(init_tiny(domain, Path(tempfile.mkdtemp()) / "tiny"))
-    backend = TransformersBackend(model, batch_size=1)
+    backend = TransformersBackend(model, device=device, dtype=dtype, batch_size=1)
     reqs = [type(r)(r.prompt, r.grammar, (), max_tokens) for r in _requests(domain, backend, n, True)]
     parser = runtime_index(domain).parser
     lengths = {r.prompt: max(1, c.tokens) for r, c in zip(reqs, backend.generate(reqs), strict=True)}
@@ -294,8 +294,10 @@ def main() -> int:
     p.add_argument("--model", help="model directory (default: build the tiny model in a temp dir)")
     p.add_argument("--n", type=int, default=24, help="generations per engine (default 24)")
     p.add_argument("--tokens", type=int, default=24, help="max new tokens per generation (default 24)")
+    p.add_argument("--device", default="cpu", help="cpu (default), cuda, ...")
+    p.add_argument("--dtype", default="auto", help="auto (default), float32, bfloat16, float16")
     args = p.parse_args()
-    rows, skipped = run(args.model, args.n, args.tokens)
+    rows, skipped = run(args.model, args.n, args.tokens, args.device, args.dtype)
     base = dict(rows).get("unconstrained", {}).get("tok_s")
     ours = dict(rows).get("llguidance (ours)", {}).get("tok_s")
     print(f"{'engine':<38} {'tok/s':>8} {'/ unconstr.':>11} {'ours / it':>10} {'parsed':>8} {'set-up s/gen':>12}")

@@ -4,7 +4,8 @@ and the plain way, `model.generate` reading every step's prompt whole), the shar
 outside the model, and LLM-user answers per second batched (one generate for every episode that asks
 in a round) versus one at a time.
 
-    python bench/bench_llm.py [--model DIR] [--quick]      # builds the tiny model when --model is absent
+    python bench/bench_llm.py [--model DIR] [--quick] [--device cuda] [--dtype bfloat16]
+                                                 # builds the tiny model when --model is absent
 
 Needs the `models` extra. Figures go to docs/llm.md.
 """
@@ -151,7 +152,7 @@ def user_answers_per_second(domain, backend, n: int, steps: int) -> tuple:
     return out, answers, all(r == replies[0] for r in replies)
 
 
-def run(model: str | None, quick: bool) -> list:
+def run(model: str | None, quick: bool, device: str = "cpu", dtype: str = "auto") -> list:
     """Benchmark rows."""
     from adaptbench.compiler import load_domain
     from adaptbench.llm.hf import TransformersBackend
@@ -160,8 +161,8 @@ def run(model: str | None, quick: bool) -> list:
     domain = load_domain(SPEC)
     if model is None:
         model = str(init_tiny(domain, Path(tempfile.mkdtemp()) / "tiny"))
-    backend = TransformersBackend(model, batch_size=16)
-    plain = TransformersBackend(model, batch_size=1, sessions=0)
+    backend = TransformersBackend(model, device=device, dtype=dtype, batch_size=16)
+    plain = TransformersBackend(model, device=device, dtype=dtype, batch_size=1, sessions=0)
     plain.loop = False  # model.generate, every step's prompt read whole: what a user would write
     n, steps = (8, 5) if quick else (16, 20)
     con, unc = decode_speed(domain, backend, n, 1 if quick else 3)
@@ -195,9 +196,11 @@ def main() -> int:
     """Run and print."""
     p = argparse.ArgumentParser(description=__doc__)
     p.add_argument("--model", help="model directory (default: build the tiny model in a temp dir)")
-    p.add_argument("--quick", action="store_true")
+    p.add_argument("--quick", action="store_true", help="8 episodes of 5 steps, one round (a smoke run)")
+    p.add_argument("--device", default="cpu", help="cpu (default), cuda, cuda:1, ... (the >= 4x target is a GPU one)")
+    p.add_argument("--dtype", default="auto", help="auto (default), float32, bfloat16, float16")
     args = p.parse_args()
-    report(run(args.model, args.quick))
+    report(run(args.model, args.quick, args.device, args.dtype))
     return 0
 
 
