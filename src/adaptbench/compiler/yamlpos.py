@@ -102,8 +102,23 @@ def _prescan(text: str, file: str) -> list[Diagnostic]:
                                                     f"UTF-8 text without control characters")]
     try:
         return _scan_tokens(text, file)
-    except yaml.YAMLError:  # a syntax error: the composer reports it (every token before it was checked)
+    except yaml.MarkedYAMLError as exc:  # a syntax error: the composer reports it (every token before it was
+        return _too_deep(text, file, exc.problem_mark)  # checked), unless the scanner gave up on nesting first
+    except yaml.YAMLError:
         return []
+
+
+def _too_deep(text: str, file: str, mark) -> list[Diagnostic]:
+    """S012 when the scanner stopped inside more than MAX_DEPTH open flow brackets: newer PyYAML scanners
+    limit nesting themselves, before a `[`/`{` token reaches `_scan_tokens` (they are held back while a
+    simple key may still follow), and their wording is theirs to change."""
+    if mark is None:
+        return []
+    head = text[:mark.index]
+    depth = head.count("[") + head.count("{") - head.count("]") - head.count("}")
+    if depth <= MAX_DEPTH:
+        return []
+    return [_diag(file, mark, "S012", f"nesting too deep (more than {MAX_DEPTH} levels)")]
 
 
 def _scan_tokens(text: str, file: str) -> list[Diagnostic]:
