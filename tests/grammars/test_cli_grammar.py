@@ -53,8 +53,8 @@ def test_show_reports_bad_input(tmp_path, capsys):
 
 
 def test_cli_choices_match_the_grammar_levels_and_variants():
-    """cli_grammar writes the choices out (so `adapt --help` does not import the grammar code)."""
-    from adaptbench import cli_grammar
+    """cli.grammar writes the choices out (so `adapt --help` does not import the grammar code)."""
+    from adaptbench.cli import grammar as cli_grammar
     from adaptbench.grammars import LEVELS, VARIANTS
 
     assert (cli_grammar.LEVELS, cli_grammar.VARIANTS) == (LEVELS, VARIANTS)

@@ -1,4 +1,4 @@
-"""Prompts: jinja2 templates shipped in `llm/prompts/`, rendered from the domain into chat messages with
+"""Prompts: jinja2 templates shipped in `llm/templates/`, rendered from the domain into chat messages with
 the standard roles only (system, user, assistant).
 
     builder = PromptBuilder(domain, "planner")
@@ -49,7 +49,7 @@ class Prompt:
 @lru_cache(maxsize=1)
 def environment() -> jinja2.Environment:
     """The jinja2 environment over the packaged templates (strict: a missing variable is an error)."""
-    return jinja2.Environment(loader=jinja2.PackageLoader("adaptbench.llm", "prompts"),
+    return jinja2.Environment(loader=jinja2.PackageLoader("adaptbench.llm", "templates"),
                               undefined=jinja2.StrictUndefined, autoescape=False,
                               keep_trailing_newline=False, trim_blocks=False)
 

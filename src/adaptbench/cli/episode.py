@@ -5,19 +5,19 @@ from __future__ import annotations
 import json
 import sys
 
-from .cli_types import positive, read_lines, seed
+from .argtypes import positive, read_lines, seed
 
 
 def _domain(args):
     """The compiled domain of `--spec`; a SpecError goes to the CLI's one handler (located diagnostics, exit 1)."""
-    from .compiler import load_domain
+    from ..compiler import load_domain
 
     return load_domain(args.spec)
 
 
 def _env(args, domain):
-    from .agents.users import OfflineUser
-    from .runtime.env import Env
+    from ..agents.users import OfflineUser
+    from ..runtime.env import Env
 
     for name, pool in (("task", domain.task), ("persona", domain.persona)):
         value = getattr(args, name)
@@ -44,7 +44,7 @@ def format_verdicts(evaluation) -> str:
 
 
 def _cmd_scene(args) -> int:
-    from .runtime.scene import sample_scene
+    from ..runtime.scene import sample_scene
 
     domain = _domain(args)
     scene = sample_scene(domain, None if args.full else args.seed, args.full)

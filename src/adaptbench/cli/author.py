@@ -8,12 +8,12 @@ import os
 import sys
 from pathlib import Path
 
-from .cli_episode import add_spec_option
+from .episode import add_spec_option
 
 
 def _cmd_test(args) -> int:
-    from .cli_runs import _seeds
-    from .qa.spectest import run_tests
+    from ..qa.spectest import run_tests
+    from .runs import _seeds
 
     def ids(text):
         return [x.strip() for x in text.split(",") if x.strip()] if text else None
@@ -25,7 +25,7 @@ def _cmd_test(args) -> int:
 
 
 def _cmd_new(args) -> int:
-    from .authoring import add_to_splits, skeleton_path, skeleton_text
+    from ..authoring import add_to_splits, skeleton_path, skeleton_text
 
     try:
         path, text = skeleton_path(args.spec, args.kind, args.id), skeleton_text(args.spec, args.kind, args.id)
@@ -49,8 +49,8 @@ def _cmd_new(args) -> int:
 
 
 def _cmd_vocab(args) -> int:
-    from .authoring import vocabulary
-    from .compiler import load_domain
+    from ..authoring import vocabulary
+    from ..compiler import load_domain
 
     sections = vocabulary(load_domain(args.spec))
     wanted = [k for k in sections if getattr(args, k)] or list(sections)
@@ -66,11 +66,11 @@ def _cmd_vocab(args) -> int:
 
 
 def _cmd_schema(args) -> int:
-    from .authoring import schemas
+    from ..authoring import schemas
 
     domain = None
     if args.spec and Path(args.spec).is_dir():
-        from .compiler import load_domain
+        from ..compiler import load_domain
 
         domain = load_domain(args.spec)
     out = Path(args.out)

@@ -5,20 +5,20 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from .cli_episode import _domain, add_spec_option
-from .cli_types import read_lines, seed
+from .argtypes import read_lines, seed
+from .episode import _domain, add_spec_option
 
 
 def _expected(args):
-    from .grammars import build_index
-    from .grammars.files import expected_files
+    from ..grammars import build_index
+    from ..grammars.files import expected_files
 
     domain = _domain(args)
     return expected_files(domain, build_index(domain))
 
 
 def _cmd_build(args) -> int:
-    from .grammars.files import build
+    from ..grammars.files import build
 
     for path in build(Path(args.out), _expected(args)):
         print(path)
@@ -26,7 +26,7 @@ def _cmd_build(args) -> int:
 
 
 def _cmd_check(args) -> int:
-    from .grammars.files import drift
+    from ..grammars.files import drift
 
     problems = drift(Path(args.out), _expected(args))
     for path, what in problems:
@@ -39,7 +39,7 @@ def _cmd_check(args) -> int:
 
 
 def _replay(args, domain):
-    from .runtime.env import Env
+    from ..runtime.env import Env
 
     env = Env(domain, args.task, seed=None if args.full_scene else args.seed, full_scene=args.full_scene)
     env.reset()
@@ -52,7 +52,7 @@ def _replay(args, domain):
 
 
 def _cmd_show(args) -> int:
-    from .grammars import GrammarCache, build_index
+    from ..grammars import GrammarCache, build_index
 
     domain = _domain(args)
     if args.task not in domain.task:

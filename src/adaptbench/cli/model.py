@@ -6,7 +6,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from .policies import AGENTS
+from ..llm.policies import AGENTS
 
 
 def add_rollout_options(p) -> None:
@@ -41,7 +41,7 @@ def _fail(msg: str, code: int = 2):
 
 def _backend(args, model: str):
     try:
-        from .backend import make_backend
+        from ..llm.backend import make_backend
     except ImportError as exc:  # pragma: no cover - the models extra is missing
         _fail(f"{exc}; install the models extra: pip install torch==2.13.0 && pip install -e '.[models]'")
     try:
@@ -60,9 +60,9 @@ def run_rollout(args, jobs: list, domain) -> int:
     """`adapt rollout` for LLM agents: one policy per agent, episodes batched."""
     from ..agents.users import OfflineUser
     from ..harness.results import ResultsError
-    from .policies import LLMPolicy
-    from .rollout import rollout_llm
-    from .user import LLMUser
+    from ..llm.policies import LLMPolicy
+    from ..llm.rollout import rollout_llm
+    from ..llm.user import LLMUser
 
     if not args.model:
         _fail("--model is required for language-model agents (a directory; `adapt model init --out DIR` "
@@ -112,7 +112,7 @@ def add_users_check_options(q) -> None:
 def users_check_llm(args) -> int:
     """Audit the LLM user: hit rate, consistency, location leaks (exit 1 below --min-rate or on a leak)."""
     from ..compiler import load_domain
-    from .audit import audit
+    from ..llm.audit import audit
 
     if not args.user_model:
         _fail("--llm needs --user-model DIR")
@@ -133,7 +133,7 @@ def users_check_llm(args) -> int:
 
 def _cmd_model_init(args) -> int:
     from ..compiler import load_domain
-    from .tiny import init_tiny
+    from ..llm.tiny import init_tiny
 
     out = Path(args.out)
     if out.exists() and not out.is_dir():
@@ -151,7 +151,7 @@ def _cmd_model_pretrain(args) -> int:
     import glob
 
     from ..compiler import load_domain
-    from .pretrain import pretrain
+    from ..llm.pretrain import pretrain
 
     paths = [p for pat in args.data for p in (sorted(glob.glob(pat)) or [pat])]
     missing = [p for p in paths if not Path(p).is_file()]
@@ -174,7 +174,7 @@ def _cmd_model_pretrain(args) -> int:
 
 def add_commands(sub) -> None:
     """Register `adapt model init` and `adapt model pretrain`."""
-    from ..cli_episode import add_spec_option
+    from .episode import add_spec_option
 
     p = sub.add_parser("model", help="local models: `adapt model init --out DIR` builds the tiny test model")
     msub = p.add_subparsers(dest="model_command", metavar="SUBCOMMAND")

@@ -5,7 +5,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from .cli_episode import add_spec_option
+from .episode import add_spec_option
 
 
 def _names(text: str, pool: dict, what: str) -> list:
@@ -21,7 +21,7 @@ def _names(text: str, pool: dict, what: str) -> list:
 
 
 def _seeds(text: str) -> list:
-    from .harness.rollout import parse_seeds
+    from ..harness.rollout import parse_seeds
 
     try:
         return parse_seeds(text)
@@ -31,9 +31,9 @@ def _seeds(text: str) -> list:
 
 
 def _grid(args, domain) -> list:
-    from .agents.scripted import AGENTS
-    from .harness.rollout import Job
-    from .llm.policies import AGENTS as LLM_AGENTS
+    from ..agents.scripted import AGENTS
+    from ..harness.rollout import Job
+    from ..llm.policies import AGENTS as LLM_AGENTS
 
     agents = list(dict.fromkeys(a.strip() for a in args.agent.split(",") if a.strip()))
     bad = [a for a in agents if a not in AGENTS and a not in LLM_AGENTS]
@@ -52,14 +52,14 @@ def _grid(args, domain) -> list:
 
 
 def _cmd_rollout(args) -> int:
-    from .compiler import load_domain
-    from .harness.results import ResultsError
-    from .harness.rollout import RolloutResult, rollout
-    from .harness.workers import Interrupted, WorkerDied
+    from ..compiler import load_domain
+    from ..harness.results import ResultsError
+    from ..harness.rollout import RolloutResult, rollout
+    from ..harness.workers import Interrupted, WorkerDied
 
     domain = load_domain(args.spec)
     jobs = _grid(args, domain)
-    from .llm.cli import is_llm, run_rollout
+    from .model import is_llm, run_rollout
 
     res = RolloutResult()
     resume = "re-run the same command to resume (finished episodes are kept and skipped)"
@@ -89,7 +89,7 @@ def _summary(res, total: int, out: str) -> None:
 
 
 def _load_runs(args):
-    from .harness.records import RunsError, load_runs, mixed_specs
+    from ..harness.records import RunsError, load_runs, mixed_specs
 
     try:
         runs = load_runs(args.runs, _splits(args))
@@ -118,7 +118,7 @@ def _splits(args):
 
     @cache
     def unseen() -> dict:
-        from .compiler import load_domain
+        from ..compiler import load_domain
 
         return load_domain(args.spec).unseen
     return unseen
@@ -126,12 +126,12 @@ def _splits(args):
 
 def _tables(args, records: list) -> tuple:
     if args.by:
-        from .harness import breakdown as b
+        from ..harness import breakdown as b
 
         rows = b.breakdown(records, args.by)
         return (rows, b.render_text(rows, args.by), lambda: b.render_csv(rows, args.by),
                 lambda: b.render_markdown(rows, args.by))
-    from .harness.evaluate import render_csv, render_markdown, render_text, table
+    from ..harness.evaluate import render_csv, render_markdown, render_text, table
 
     rows = table(records, _splits(args)() if any(r.split is not None for r in records) else None)
     return rows, render_text(rows), lambda: render_csv(rows), lambda: render_markdown(rows)
@@ -153,7 +153,7 @@ def _cmd_eval(args) -> int:
     if none and not args.by:
         print(f"{none} episode(s) had no applicable preference and are left out of the satisfaction rates")
     if not args.by:
-        from .harness.evaluate import notes
+        from ..harness.evaluate import notes
 
         for line in notes(rows):
             print(line)
@@ -167,13 +167,13 @@ def _cmd_eval(args) -> int:
 
 
 def _agent_rows(args, records: list) -> list:
-    from .harness.evaluate import table
+    from ..harness.evaluate import table
 
     return table(records, _splits(args)() if any(r.split is not None for r in records) else None)
 
 
 def _plot(path: str, rows: list, records: list) -> None:
-    from .harness.plots import PlotsUnavailable, draw
+    from ..harness.plots import PlotsUnavailable, draw
 
     try:
         draw(rows, records, Path(path))
@@ -186,11 +186,11 @@ def _plot(path: str, rows: list, records: list) -> None:
 
 
 def _cmd_users_check(args) -> int:
-    from .compiler import load_domain
-    from .qa.fidelity import check
+    from ..compiler import load_domain
+    from ..qa.fidelity import check
 
     if getattr(args, "llm", False):
-        from .llm.cli import users_check_llm
+        from .model import users_check_llm
 
         return users_check_llm(args)
     results, summary = check(load_domain(args.spec))
@@ -205,8 +205,8 @@ def _cmd_users_check(args) -> int:
 
 
 def _cmd_check_solvable(args) -> int:
-    from .compiler import load_domain
-    from .qa.solvable import unsolved
+    from ..compiler import load_domain
+    from ..qa.solvable import unsolved
 
     domain = load_domain(args.spec)
     personas = _names(args.personas, domain.persona, "persona")
@@ -238,7 +238,7 @@ def add_commands(sub) -> None:
                    "--model): planner, teacher, react, never-ask-llm, always-ask-llm (comma-separated for several)")
     p.add_argument("--out", required=True, help="results file, e.g. runs/oracle.jsonl")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
-    from .llm import cli as llm_cli
+    from . import model as llm_cli
 
     llm_cli.add_rollout_options(p)
     p.set_defaults(func=_cmd_rollout)

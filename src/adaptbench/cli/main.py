@@ -23,8 +23,8 @@ examples:
 
 
 def _cmd_validate(args) -> int:
-    from .compiler import compile_cached
-    from .compiler.diagnostics import render_all
+    from ..compiler import compile_cached
+    from ..compiler.diagnostics import render_all
 
     domain, diags = compile_cached(args.spec_dirs)
     if args.format == "json":
@@ -37,7 +37,7 @@ def _cmd_validate(args) -> int:
             print(f"{n} error(s)", file=sys.stderr)
         return 1
     if args.matrix:
-        from .compiler.lint import render_matrix
+        from ..compiler.lint import render_matrix
 
         print(render_matrix(domain))
     if args.format == "text":
@@ -64,19 +64,19 @@ def build_parser() -> argparse.ArgumentParser:
         "evaluate preference satisfaction.", epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     _add_validate(sub)
-    from . import cli_author, cli_episode, cli_grammar, cli_runs
+    from . import author, episode, grammar, runs
 
-    cli_author.add_commands(sub)
-    cli_episode.add_commands(sub)
-    cli_runs.add_commands(sub)
-    cli_grammar.add_commands(sub)
+    author.add_commands(sub)
+    episode.add_commands(sub)
+    runs.add_commands(sub)
+    grammar.add_commands(sub)
     return parser
 
 
 def report_spec_error(exc, spec=None) -> None:
     """The one report every command gives on a spec that does not compile: each located diagnostic, then a
     count, on stderr (the command then exits 1)."""
-    from .compiler.diagnostics import render_all
+    from ..compiler.diagnostics import render_all
 
     errors = sum(d.severity == "error" for d in exc.diagnostics)
     print(render_all(exc.diagnostics), file=sys.stderr)
@@ -106,7 +106,7 @@ def main(argv=None) -> int:
 def _report(exc: Exception, spec=None) -> int:
     """Print a spec error's diagnostics or a file problem as a message; anything else is a bug and keeps
     its traceback."""
-    from .compiler import SpecError
+    from ..compiler import SpecError
 
     if isinstance(exc, SpecError):
         report_spec_error(exc, spec)
@@ -119,6 +119,3 @@ def _report(exc: Exception, spec=None) -> int:
         return 1
     raise exc
 
-
-if __name__ == "__main__":
-    sys.exit(main())
