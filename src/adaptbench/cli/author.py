@@ -26,9 +26,12 @@ def _cmd_test(args) -> int:
 
 def _cmd_new(args) -> int:
     from ..authoring import add_to_splits, skeleton_path, skeleton_text
+    from ..compiler import SpecError
 
     try:
         path, text = skeleton_path(args.spec, args.kind, args.id), skeleton_text(args.spec, args.kind, args.id)
+    except SpecError:
+        raise  # a ValueError too: the one handler reports its diagnostics
     except ValueError as exc:
         print(f"adapt: {exc}", file=sys.stderr)
         return 2

@@ -104,13 +104,17 @@ def main(argv=None) -> int:
 
 
 def _report(exc: Exception, spec=None) -> int:
-    """Print a spec error's diagnostics or a file problem as a message; anything else is a bug and keeps
-    its traceback."""
+    """Print an `AdaptError` (a spec error's diagnostics, or its one-line message) or a file problem as a
+    message, with its exit code; anything else is a bug and keeps its traceback."""
     from ..compiler import SpecError
+    from ..errors import AdaptError
 
     if isinstance(exc, SpecError):
         report_spec_error(exc, spec)
-        return 1
+        return exc.exit_code
+    if isinstance(exc, AdaptError):
+        print(f"adapt: {exc}", file=sys.stderr)
+        return exc.exit_code
     if isinstance(exc, OSError) and exc.filename:
         print(f"adapt: {exc.filename}: {exc.strerror or exc}", file=sys.stderr)
         return 1

@@ -150,7 +150,7 @@ def _cmd_model_init(args) -> int:
 def _cmd_model_pretrain(args) -> int:
     import glob
 
-    from ..compiler import load_domain
+    from ..compiler import SpecError, load_domain
     from ..llm.pretrain import pretrain
 
     paths = [p for pat in args.data for p in (sorted(glob.glob(pat)) or [pat])]
@@ -165,6 +165,8 @@ def _cmd_model_pretrain(args) -> int:
                         log=(lambda m: None) if args.quiet else (lambda m: print(m, file=sys.stderr)))
     except ImportError as exc:
         _fail(f"{exc}; install the models extra: pip install torch==2.13.0 && pip install -e '.[models]'")
+    except SpecError:
+        raise  # a ValueError too: the one handler reports its diagnostics
     except ValueError as exc:
         _fail(str(exc), 1)
     print(f"trained on {info['examples']} steps of {info['episodes']} episodes for {info['steps']} updates "

@@ -22,6 +22,8 @@ import os
 import time
 from pathlib import Path
 
+from ..errors import AdaptError
+
 try:
     import fcntl
 except ImportError:  # pragma: no cover - Windows: no locking
@@ -31,12 +33,11 @@ FSYNC_SECONDS = 1.0  # at most this much finished work is exposed to a power cut
 FSYNC_RECORDS = 64
 
 
-class ResultsError(Exception):
+class ResultsError(AdaptError):
     """A results file cannot be used (bad path, locked by another run); the message says why."""
 
     def __init__(self, message: str, code: int = 1):
-        super().__init__(message)
-        self.code = code
+        super().__init__(message, code=code)
 
 
 class DiskFull(ResultsError):

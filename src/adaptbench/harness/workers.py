@@ -15,6 +15,8 @@ import signal
 import sys
 from contextlib import contextmanager
 
+from ..errors import AdaptError
+
 POLL_SECONDS = 0.2
 
 
@@ -27,7 +29,7 @@ class Interrupted(BaseException):
         self.signum = signum
 
 
-class WorkerDied(RuntimeError):
+class WorkerDied(AdaptError, RuntimeError):
     """A worker process ended without being asked to."""
 
 

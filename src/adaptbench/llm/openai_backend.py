@@ -24,10 +24,11 @@ import urllib.error
 import urllib.request
 from concurrent.futures import ThreadPoolExecutor
 
+from ..errors import AdaptError
 from .backend import Backend, Completion, Scored, cut_at_stop
 
 
-class ServerError(RuntimeError):
+class ServerError(AdaptError, RuntimeError):
     """The server could not be reached or answered with an error."""
 
 
