@@ -50,7 +50,10 @@ def _add_validate(sub) -> None:
     p = sub.add_parser("validate", help="check spec files and report every problem with file:line:col",
                        description="Compile the spec directories and report every problem at once. "
                                    "Exit 0 when clean, 1 on errors, 2 on usage errors.")
-    p.add_argument("spec_dirs", nargs="*", default=["spec"], help="spec directories (default: spec)")
+    from ..paper import default_spec
+
+    p.add_argument("spec_dirs", nargs="*", default=[default_spec()],
+                   help="spec directories (default: the paper's spec shipped with adaptbench; $ADAPT_SPEC overrides)")
     p.add_argument("--format", choices=["text", "json"], default="text", help="output format")
     p.add_argument("--matrix", action="store_true",
                    help="also print how many preferences of each persona apply to each task")

@@ -6,6 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from ..paper import default_spec
 from .episode import add_spec_option
 
 
@@ -262,7 +263,7 @@ def add_commands(sub) -> None:
                        description="Preference satisfaction rate and questions asked (mean ± standard error) "
                                    "for seen and unseen personas under the cross-validation splits of spec/splits.yaml.")
     p.add_argument("runs", nargs="+", help="JSONL files written by adapt rollout")
-    p.add_argument("--spec", default="spec", help="spec directory whose splits.yaml defines seen/unseen personas "
+    p.add_argument("--spec", default=default_spec(), help="spec directory whose splits.yaml defines seen/unseen personas "
                                                   "(read only for records with a `split`; default: spec)")
     p.add_argument("--csv", help="also write the table as CSV")
     p.add_argument("--markdown", help="also write the table as Markdown")
