@@ -13,6 +13,7 @@ Other packages add agents through the entry-point group `adaptbench.agents` (in 
 
 from __future__ import annotations
 
+import contextlib
 import importlib
 from dataclasses import dataclass, field
 
@@ -121,6 +122,7 @@ def make(name: str, domain, backend=None, **options):
         policy = factory(backend=backend, domain=domain, **s.options, **options)
     else:
         policy = factory(domain, **s.options)
-    if not getattr(policy, "name", None):
-        policy.name = name
+    if getattr(policy, "name", None) != name:
+        with contextlib.suppress(AttributeError):  # the registered name is the agent's name in its records
+            policy.name = name
     return policy
