@@ -85,28 +85,28 @@ class ByAgent(Policy):
     name = "by-agent"
 
     def __init__(self):
-        self.owner: dict = {}  # episode id -> policy
+        self.owner: dict = {}  # episode id -> (agent name, policy)
 
     def start(self, episode: str, env) -> None:
         """Start the episode on its agent's policy."""
-        self.owner[episode].start(episode, env)
+        self.owner[episode][1].start(episode, env)
 
     def end(self, episode: str) -> None:
         """End the episode on its agent's policy."""
-        policy = self.owner.pop(episode, None)
+        _agent, policy = self.owner.pop(episode, (None, None))
         if policy is not None:
             policy.end(episode)
 
     def act(self, view):
         """The decision of the view's agent."""
-        return self.owner[view.episode].act(view)
+        return self.owner[view.episode][1].act(view)
 
     def act_batch(self, views) -> list:
         """One call per policy for its views, answers in the order of `views`."""
         groups: dict = {}
         for i, v in enumerate(views):
-            policy = self.owner[v.episode]
-            groups.setdefault(id(policy), (policy, []))[1].append(i)
+            agent, policy = self.owner[v.episode]
+            groups.setdefault(agent, (policy, []))[1].append(i)
         out = [None] * len(views)
         for policy, rows in groups.values():
             mine = [views[i] for i in rows]
@@ -141,7 +141,7 @@ def run_batched(jobs, domain, policy, make_user, batch: int = 16, config: dict |
                 user.bind(env)
             pending[episode_id(job)] = (job, user)
             if several:
-                router.owner[episode_id(job)] = mine
+                router.owner[episode_id(job)] = (job.agent, mine)
             yield episode_id(job), env
 
     for ep in iter_batch(router, episodes(), batch, catch=True):

@@ -77,7 +77,7 @@ for _name, _cls, _text in (("oracle", "OraclePolicy", "privileged: searches the 
     register(_name, f"{_SCRIPTED}:{_cls}", "scripted", _text)
 for _name, _kind in (("planner", "planner"), ("teacher", "teacher"), ("react", "react"),
                      ("never-ask-llm", "never_ask"), ("always-ask-llm", "always_ask")):
-    register(_name, _LLM, "model", f"language model ({_kind} prompt); needs --model", agent=_name)
+    register(_name, _LLM, "model", f"language model, {_kind} prompt, needs --model", agent=_name)
 
 
 def _load_plugins() -> None:
