@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import io
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -64,7 +65,7 @@ def test_the_default_spec_is_the_shipped_one_and_adapt_spec_overrides(monkeypatc
 
 
 def test_adapt_validate_from_any_directory_uses_the_shipped_spec_or_adapt_spec(tmp_path):
-    env = {"PATH": "/usr/bin:/bin", "ADAPT_SPEC": str(SMALL)}
+    env = {**os.environ, "ADAPT_SPEC": str(SMALL)}
     r = subprocess.run([sys.executable, "-m", "adaptbench.cli", "validate"], cwd=tmp_path, capture_output=True,
                        text=True, timeout=120, env=env)
     assert r.returncode == 0 and "2 personas" in r.stdout, r.stderr
