@@ -1,6 +1,6 @@
 """The spec compiler: YAML specs -> diagnostics and one immutable `CompiledDomain`.
 
-    domain = load_domain("spec")                     # cached by content hash
+    domain = load_domain()                           # the paper's spec (adaptbench.paper); cached by content hash
     domain, diagnostics = compile_spec(["spec"])     # every problem in one run
 """
 
