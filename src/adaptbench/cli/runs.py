@@ -90,13 +90,9 @@ def _summary(res, total: int, out: str) -> None:
 
 
 def _load_runs(args):
-    from ..harness.records import RunsError, load_runs, mixed_specs
+    from ..harness.records import load_runs, mixed_specs
 
-    try:
-        runs = load_runs(args.runs, _splits(args))
-    except RunsError as exc:
-        print(f"adapt: {exc}", file=sys.stderr)
-        raise SystemExit(exc.code) from None
+    runs = load_runs(args.runs, _splits(args))  # a RunsError goes to the one handler: its message, its code
     mixed = mixed_specs(runs)
     if mixed and not args.allow_mixed:
         print(f"adapt: {mixed}", file=sys.stderr)
@@ -174,13 +170,13 @@ def _agent_rows(args, records: list) -> list:
 
 
 def _plot(path: str, rows: list, records: list) -> None:
-    from ..harness.plots import PlotsUnavailable, draw
+    from ..errors import AdaptError
+    from ..harness.plots import draw
 
     try:
         draw(rows, records, Path(path))
-    except PlotsUnavailable as exc:
-        print(f"adapt: {exc}", file=sys.stderr)
-        raise SystemExit(1) from None
+    except AdaptError:
+        raise  # PlotsUnavailable: the one handler prints it
     except (OSError, ValueError) as exc:
         print(f"adapt: cannot write the plot {path} ({getattr(exc, 'strerror', None) or exc})", file=sys.stderr)
         raise SystemExit(1) from None
