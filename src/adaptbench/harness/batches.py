@@ -1,7 +1,6 @@
-"""Batched rollouts of any `Policy` (scripted or language-model agents, the backend handed in with the
-policy), on the harness's loop (`harness.episode.iter_batch`): the one rollout path. Up
-to `batch` episodes advance together, one batched call (`Policy.act_batch`: for a model, one batched
-generation) for every episode awaiting an action, then one batched generation per user backend for every episode whose action asks
+"""Batched rollouts of any `Policy`, on the harness's loop (`harness.episode.iter_batch`): up
+to `batch` episodes advance together, one batched generation (`LLMPolicy.act_batch`) for every episode
+awaiting an action, then one batched generation per user backend for every episode whose action asks
 the LLM user (`harness.episode.prepare_answers`, `LLMUser.prepare_answers`), then the simulator steps;
 a finished episode's slot is refilled from the queue. Records are `EpisodeRecord`s with each step's
 completion and statistics, appended to the same results file (resumable); an episode whose step raised
@@ -9,32 +8,25 @@ becomes an error record.
 
     policy = LLMPolicy(make_backend("transformers", model="models/tiny"), domain, "planner")
     res = rollout_policy(jobs, Path("runs/planner.jsonl"), domain, policy, make_user, batch=16)
-    res = rollout_policy(jobs, out, domain, {"oracle": oracle, "never-ask": never}, make_user)  # several agents
+
+The one rollout path: any `Policy` runs here, scripted or language-model (the backend handed in with the
+policy), and several agents' policies at once (`policy` a dict by agent name, `byagent.ByAgent`):
+
+    res = rollout_policy(jobs, out, domain, {"oracle": oracle, "never-ask": never}, OfflineUser)
 """
 
 from __future__ import annotations
 
 import traceback
-from dataclasses import dataclass, field
 from pathlib import Path
 
+from ..harness.byagent import ByAgent, Same
+from ..harness.episode import Episode, iter_batch
+from ..harness.output import RolloutResult, write_all
+from ..harness.record import EpisodeRecord
+from ..harness.results import ResultsFile, episode_key
+from ..harness.workers import run_stream_pool
 from ..runtime.env import MAX_STEPS, Env
-from .episode import Episode, decide_each, iter_batch
-from .policy import Policy
-from .record import EpisodeRecord
-from .results import ResultsFile, episode_key
-from .workers import Interrupted, run_stream_pool
-
-
-@dataclass
-class RolloutResult:
-    """What a rollout did: episodes run, already present, errors, and whether it was interrupted."""
-
-    ran: int = 0
-    present: int = 0
-    errors: int = 0
-    interrupted: bool = False
-    error_samples: list = field(default_factory=list)
 
 
 def max_steps(policy) -> int:
@@ -49,107 +41,63 @@ def episode_id(job) -> str:
 
 
 def record(ep: Episode, job, config: dict, spec_hash: str, notes: tuple = ()) -> dict:
-    """A finished episode's record (its error record when a step, or evaluating it, raised), as a dict;
-    `notes`: what the agent could not do on this task (scripted agents: `no recipe for component X`)."""
+    """A finished episode's record (its error record when a step raised), as a dict."""
     header = {"agent": job.agent, "agent_config": config, "persona": job.persona, "task": job.task,
               "seed": job.seed, "spec_hash": spec_hash}
     if ep.error is not None:
         return EpisodeRecord(**header, error=ep.error[0], traceback=ep.error[1]).to_dict()
+    ev = ep.env.evaluate()
+    return EpisodeRecord(**header, scene=ep.env.scene.scene_id, steps=tuple(ep.steps), satisfied=ev.satisfied,
+                         violated=ev.violated, preferences=tuple(ev.as_dict()["preferences"]),
+                         satisfaction_rate=ev.satisfaction_rate, questions=ev.questions,
+                         completed=tuple(ev.completed), notes=tuple(notes)).to_dict()
+
+
+def safe_record(ep: Episode, job, config: dict, spec_hash: str, notes: tuple = ()) -> dict:
+    """`record`, with an exception while evaluating the episode turned into its error record."""
     try:
-        ev = ep.env.evaluate()
-        return EpisodeRecord(**header, scene=ep.env.scene.scene_id, steps=tuple(ep.steps), satisfied=ev.satisfied,
-                             violated=ev.violated, preferences=tuple(ev.as_dict()["preferences"]),
-                             satisfaction_rate=ev.satisfaction_rate, questions=ev.questions,
-                             completed=tuple(ev.completed), notes=tuple(notes)).to_dict()
+        return record(ep, job, config, spec_hash, notes)
     except Exception as exc:  # noqa: BLE001 - one episode's bug must not end the run
-        return EpisodeRecord(**header, error=f"{type(exc).__name__}: {exc}",
+        return EpisodeRecord(agent=job.agent, agent_config=config, persona=job.persona, task=job.task, seed=job.seed,
+                             spec_hash=spec_hash, error=f"{type(exc).__name__}: {exc}",
                              traceback=traceback.format_exc()).to_dict()
-
-
-class _Same(dict):
-    """A mapping that gives one value for every key it does not hold (one policy for every agent)."""
-
-    def __init__(self, value):
-        super().__init__()
-        self.value = value
-
-    def __missing__(self, key):
-        return self.value
-
-
-class ByAgent(Policy):
-    """Several agents' policies as one: each episode goes to its agent's policy; each round, one
-    `act_batch` per policy for its episodes (a policy that does not batch decides per episode, so that
-    one episode's exception ends only that episode)."""
-
-    name = "by-agent"
-
-    def __init__(self):
-        self.owner: dict = {}  # episode id -> (agent name, policy)
-
-    def start(self, episode: str, env) -> None:
-        """Start the episode on its agent's policy."""
-        self.owner[episode][1].start(episode, env)
-
-    def end(self, episode: str) -> None:
-        """End the episode on its agent's policy."""
-        _agent, policy = self.owner.pop(episode, (None, None))
-        if policy is not None:
-            policy.end(episode)
-
-    def act(self, view):
-        """The decision of the view's agent."""
-        return self.owner[view.episode][1].act(view)
-
-    def act_batch(self, views) -> list:
-        """One call per policy for its views, answers in the order of `views`."""
-        groups: dict = {}
-        for i, v in enumerate(views):
-            agent, policy = self.owner[v.episode]
-            groups.setdefault(agent, (policy, []))[1].append(i)
-        out = [None] * len(views)
-        for policy, rows in groups.values():
-            mine = [views[i] for i in rows]
-            batched = type(policy).act_batch is not Policy.act_batch
-            for i, d in zip(rows, policy.act_batch(mine) if batched else decide_each(policy, mine), strict=True):
-                out[i] = d
-        return out
 
 
 def run_batched(jobs, domain, policy, make_user, batch: int = 16, config: dict | None = None,
                 steps: int | None = None):
-    """Run the jobs, `batch` at a time; yields each finished episode's record. `policy` is one Policy,
-    or a dict agent name -> Policy for jobs of several agents. `make_user(domain, persona, task)`
-    returns the episode's user (with `.bind(env)` if it reads the state); `config` is the agent
-    configuration recorded (a dict agent -> configuration with several policies; by default
-    `policy.config()` with the first user's); `steps` overrides the step budget (`max_steps(policy)`)."""
+    """Run the jobs, `batch` at a time; yields each finished episode's record. `make_user(domain,
+    persona, task)` returns the episode's user (with `.bind(env)` if it reads the state); `config` is
+    the agent configuration recorded (by default `policy.config()` with the first user's); `steps`
+    overrides the step budget (`max_steps(policy)`). With several agents, `policy` is a dict agent name ->
+    Policy (and `config`, if given, a dict agent name -> configuration)."""
     pending: dict = {}  # episode id -> (job, user)
-    several = isinstance(policy, dict)
-    policies = policy if several else _Same(policy)
-    configs = _Same(None if several else config)
-    if several:
-        configs.update(config or {})
-    router = ByAgent() if several else policy
+    policies, configs = _by_agent(policy, config)
+    router = ByAgent(policies) if isinstance(policy, dict) else policy
 
     def episodes():
         for job in jobs:
             persona, task = domain.persona[job.persona], domain.task[job.task]
             user = make_user(domain, persona, task)
-            mine = policies[job.agent]
-            env = Env(domain, job.task, job.persona, job.seed, user=user, max_steps=steps or max_steps(mine))
+            env = Env(domain, job.task, job.persona, job.seed, user=user, max_steps=steps or max_steps(policies[job.agent]))
             if hasattr(user, "bind"):
                 user.bind(env)
             pending[episode_id(job)] = (job, user)
-            if several:
-                router.owner[episode_id(job)] = (job.agent, mine)
             yield episode_id(job), env
 
     for ep in iter_batch(router, episodes(), batch, catch=True):
         job, user = pending.pop(ep.id)
-        mine = policies[job.agent]
         if configs[job.agent] is None:
-            configs[job.agent] = {**mine.config(), **_user_config(user)}
-        yield record(ep, job, configs[job.agent], domain.spec_hash, _notes(mine, job))
+            configs[job.agent] = {**policies[job.agent].config(), **_user_config(user)}
+        yield safe_record(ep, job, configs[job.agent], domain.spec_hash, _notes(policies[job.agent], job))
+
+
+def _by_agent(policy, config) -> tuple:
+    """(agent -> policy, agent -> configuration or None) for one policy or a dict of them."""
+    if not isinstance(policy, dict):
+        return Same(policy), config if isinstance(config, Same) else Same(config)
+    configs = Same(None)
+    configs.update(config or {})
+    return policy, configs
 
 
 def _notes(policy, job) -> tuple:
@@ -163,22 +111,18 @@ def _user_config(user) -> dict:
 
 def rollout_policy(jobs, out: Path, domain, policy, make_user, batch: int = 16, progress: bool = True,
                    user_config: dict | None = None, steps: int | None = None, workers: int = 1) -> RolloutResult:
-    """Run the jobs not yet in `out` (same agent configuration and spec), appending each record. `policy`
-    is one Policy or a dict agent name -> Policy (scripted and model agents alike; a model policy holds
-    its backend). The recorded configuration is the policy's `config()` with the user's (`user_config`)
-    and any step budget.
+    """Run the jobs not yet in `out` (same agent configuration and spec), appending each record. The
+    recorded configuration is `policy.config()` with the user's (`user_config`) and any step budget.
     With `workers` > 1, that many forked processes (each with the parent's model, copy-on-write) run
     batched rollouts on jobs pulled from one queue and this process writes their records: data
-    parallelism for models on the CPU."""
+    parallelism for models on the CPU. `policy` may be a dict agent name -> Policy (several agents, one
+    configuration each)."""
     res = RolloutResult()
-    several = isinstance(policy, dict)
-    configs = {a: {**p.config(), **(user_config or {"user": "offline"}), **({"max_steps": steps} if steps else {})}
-               for a, p in (policy if several else {None: policy}).items()}
-    config = configs if several else configs[None]
+    config = _configs(policy, user_config, steps)
     with ResultsFile.open(Path(out), domain.spec_hash) as store:
         def done(j) -> bool:
-            return episode_key({"agent_config": configs[j.agent if several else None], "spec_hash": domain.spec_hash,
-                                "persona": j.persona, "task": j.task, "seed": j.seed}) in store.done
+            return episode_key({"agent_config": config[j.agent], "spec_hash": domain.spec_hash, "persona": j.persona,
+                                "task": j.task, "seed": j.seed}) in store.done
 
         todo = [j for j in dict.fromkeys(jobs) if not done(j)]
         res.present = len(set(jobs)) - len(todo)
@@ -190,34 +134,11 @@ def rollout_policy(jobs, out: Path, domain, policy, make_user, batch: int = 16, 
     return res
 
 
-def write_all(store: ResultsFile, records, total: int, res: RolloutResult, out, progress: bool = True) -> None:
-    """Append each record as it comes (duplicates skipped), with a progress bar over `total`; on
-    `Interrupted` mark `res` and re-raise (what was written stays)."""
-    from ..progress import progress_bar
+def _configs(policy, user_config: dict | None, steps: int | None):
+    """Agent name -> the configuration recorded: the policy's, the user's, any step budget."""
+    def of(p) -> dict:
+        return {**p.config(), **(user_config or {"user": "offline"}), **({"max_steps": steps} if steps else {})}
 
-    bar = progress_bar(total, f"rollout -> {Path(out).name}") if progress else None
-    try:
-        for record in records:
-            _write(store, record, bar, res)
-    except Interrupted:
-        res.interrupted = True
-        raise
-    finally:
-        if bar:
-            bar.close()
-
-
-def _write(store: ResultsFile, record: dict, bar, res: RolloutResult) -> None:
-    if not store.append(record):
-        return
-    res.ran += 1
-    if "error" in record:
-        res.errors += 1
-        if len(res.error_samples) < 3:
-            res.error_samples.append(f"{record['agent']} {record['persona']}/{record['task']} seed {record['seed']}: "
-                                     f"{record['error']}")
-    if bar:
-        rate = record.get("satisfaction_rate")
-        note = "error" if "error" in record else ("n/a" if rate is None else f"{rate:.0%}")
-        bar.set_postfix_str(f"{record['agent']} {record['persona']}/{record['task']} {note}", refresh=False)
-        bar.update()
+    if isinstance(policy, dict):
+        return {agent: of(p) for agent, p in policy.items()}
+    return Same(of(policy))

@@ -12,7 +12,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from .batches import RolloutResult, rollout_policy
+from .batches import rollout_policy
+from .output import RolloutResult
 
 __all__ = ["Job", "RolloutResult", "config_of", "done_keys", "parse_seeds", "rollout"]
 
