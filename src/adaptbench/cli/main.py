@@ -113,6 +113,11 @@ def _report(exc: Exception, spec=None) -> int:
     if isinstance(exc, SpecError):
         report_spec_error(exc, spec)
         return 1
+    from ..llm.backend import ModelError
+
+    if isinstance(exc, ModelError):  # a model or server that cannot be used as given: what to do, exit 2
+        print(f"adapt: {exc}", file=sys.stderr)
+        return 2
     if isinstance(exc, OSError) and exc.filename:
         print(f"adapt: {exc.filename}: {exc.strerror or exc}", file=sys.stderr)
         return 1

@@ -44,24 +44,25 @@ def _backend(args, model: str):
         from ..llm.backend import make_backend
     except ImportError as exc:  # pragma: no cover - the models extra is missing
         _fail(f"{exc}; install the models extra: pip install torch==2.13.0 && pip install -e '.[models]'")
+    from ..llm.backend import ModelError
+
     try:
         if args.backend == "openai":
             plain = getattr(args, "server", "vllm") == "transformers-serve"
-            return make_backend("openai", url=args.url, model=model, tokenizer=args.tokenizer or model,
-                                text_prompts=plain, grammar_field=not plain)
+            backend = make_backend("openai", url=args.url, model=model, tokenizer=args.tokenizer or model,
+                                   text_prompts=plain, grammar_field=not plain)
+            backend.probe()
+            return backend
         return make_backend("transformers", model=model, device=args.device, dtype=args.dtype)
     except ImportError as exc:
         _fail(f"{exc}; install the models extra: pip install torch==2.13.0 && pip install -e '.[models]'")
-    except (FileNotFoundError, OSError, ValueError) as exc:
-        _fail(str(exc))
+    except (ModelError, FileNotFoundError, OSError, ValueError) as exc:
+        _fail(str(exc).splitlines()[0] if str(exc) else type(exc).__name__)
 
 
 def run_rollout(args, jobs: list, domain) -> int:
     """`adapt rollout` for LLM agents: one policy per agent, episodes batched."""
     from ..agents.users import OfflineUser
-    from ..harness.results import ResultsError
-    from ..llm.policies import LLMPolicy
-    from ..llm.rollout import rollout_llm
     from ..llm.user import LLMUser
 
     if not args.model:
@@ -87,15 +88,29 @@ def run_rollout(args, jobs: list, domain) -> int:
     for agent in dict.fromkeys(j.agent for j in jobs):
         if agent not in AGENTS:
             _fail(f"agent '{agent}' cannot be mixed with language-model agents in one command")
-        policy = LLMPolicy(backend, domain, agent, budget=args.budget)
-        try:
-            res = rollout_llm([j for j in jobs if j.agent == agent], Path(args.out), domain, policy, make_user,
-                              args.batch, not args.quiet, user_config, args.max_steps, args.workers)
-        except ResultsError as exc:
-            _fail(str(exc), exc.code)
+        res = _rollout_agent(args, [j for j in jobs if j.agent == agent], domain, backend, make_user, user_config)
         ran, errors, present = ran + res.ran, errors + res.errors, present + res.present
     print(f"{ran} episode(s) run, {present} already in {args.out}")
     return 1 if errors else 0
+
+
+def _rollout_agent(args, jobs: list, domain, backend, make_user, user_config: dict):
+    """One LLM agent's rollout; a model or server that fails is one message (exit 2), a results file
+    problem its own."""
+    from ..harness.results import ResultsError
+    from ..llm.backend import ModelError
+    from ..llm.policies import LLMPolicy
+    from ..llm.rollout import rollout_llm
+
+    try:
+        policy = LLMPolicy(backend, domain, jobs[0].agent, budget=args.budget)
+        return rollout_llm(jobs, Path(args.out), domain, policy, make_user, args.batch, not args.quiet,
+                           user_config, args.max_steps, args.workers)
+    except ResultsError as exc:
+        _fail(str(exc), exc.code)
+    except ModelError as exc:
+        kept = f"; the episodes finished before it are in {args.out}" if Path(args.out).is_file() else ""
+        _fail(f"{exc}{kept}")
 
 
 def add_users_check_options(q) -> None:
