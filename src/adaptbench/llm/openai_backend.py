@@ -28,7 +28,12 @@ from .backend import Backend, Completion, ModelError, Scored, context_limit, cut
 
 
 class ServerError(ModelError):
-    """The server could not be reached or answered with an error; the message says what to do."""
+    """The server could not be reached or answered with an error; the message says what to do
+    (`status`: the HTTP status when it answered one)."""
+
+    def __init__(self, message: str, status: int | None = None):
+        super().__init__(message)
+        self.status = status
 
 
 class OpenAIBackend(Backend):
@@ -61,7 +66,7 @@ class OpenAIBackend(Backend):
                 return json.loads(resp.read())
         except urllib.error.HTTPError as exc:
             raise ServerError(http_advice(self.url + path, exc.code, exc.read()[:400].decode(errors="replace"),
-                                          body or {})) from None
+                                          body or {}), exc.code) from None
         except (urllib.error.URLError, TimeoutError, ConnectionError) as exc:
             reason = getattr(exc, "reason", exc)
             raise ServerError(f"no answer from {self.url} ({reason}): start the server first (docs/llm.md), "
@@ -72,11 +77,11 @@ class OpenAIBackend(Backend):
     def probe(self) -> None:
         """Check before any episode that the server answers and serves `model` (GET /models); learn
         its context (vLLM's `max_model_len`). ServerError saying what to do; a server without /models
-        passes."""
+        passes (transformers 5.23 answers HTTP 500 there without a hub cache)."""
         try:
             listing = self._post("/models", None)
         except ServerError as exc:
-            if any(f"HTTP {code}" in str(exc) for code in (404, 405, 501)):
+            if exc.status is not None:  # it answers, without a model list (or a broken one)
                 return
             raise
         models = {m.get("id"): m for m in listing.get("data") or () if isinstance(m, dict)}
