@@ -19,6 +19,7 @@ examples:
   adapt scene --seed 3 --json               the sampled scene for seed 3
   adapt play --task eggs --persona juan     play an episode in the terminal
   adapt replay --task eggs --persona juan --full-scene actions.txt --json
+  adapt view runs/demo.jsonl --out report.html   the episodes as one HTML page
 """
 
 
@@ -67,12 +68,13 @@ def build_parser() -> argparse.ArgumentParser:
         "evaluate preference satisfaction.", epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     _add_validate(sub)
-    from . import author, episode, grammar, runs
+    from . import author, episode, grammar, runs, view
 
     author.add_commands(sub)
     episode.add_commands(sub)
     runs.add_commands(sub)
     grammar.add_commands(sub)
+    view.add_commands(sub)
     return parser
 
 

@@ -37,16 +37,20 @@ def _backend(args, model: str):
         from ..llm.backend import make_backend
     except ImportError as exc:  # pragma: no cover - the models extra is missing
         _fail(f"{exc}; install the models extra: pip install torch==2.13.0 && pip install -e '.[models]'")
+    from ..llm.backend import ModelError
+
     try:
         if args.backend == "openai":
             plain = getattr(args, "server", "vllm") == "transformers-serve"
-            return make_backend("openai", url=args.url, model=model, tokenizer=args.tokenizer or model,
-                                text_prompts=plain, grammar_field=not plain)
+            backend = make_backend("openai", url=args.url, model=model, tokenizer=args.tokenizer or model,
+                                   text_prompts=plain, grammar_field=not plain)
+            backend.probe()
+            return backend
         return make_backend("transformers", model=model, device=args.device, dtype=args.dtype)
     except ImportError as exc:
         _fail(f"{exc}; install the models extra: pip install torch==2.13.0 && pip install -e '.[models]'")
-    except (FileNotFoundError, OSError, ValueError) as exc:
-        _fail(str(exc))
+    except (ModelError, FileNotFoundError, OSError, ValueError) as exc:
+        _fail(str(exc).splitlines()[0] if str(exc) else type(exc).__name__)
 
 
 def rollout_options(args, agents: list) -> dict:

@@ -9,6 +9,7 @@
   the old or the new length, never an empty file).
 - A second writer on the same file is refused (`fcntl.flock`, held for the whole run).
 - An episode key (agent configuration, spec hash, persona, task, seed) is written at most once.
+- A file the run created is removed again if the run ends before its first record (nothing half-written).
 - A full disk (ENOSPC, EFBIG) truncates the partial line away and raises `DiskFull`: the file stays
   resumable.
 """
@@ -133,8 +134,9 @@ def parse_line(line: bytes):
 class ResultsFile:
     """An exclusively locked, append-only results file (use `ResultsFile.open`)."""
 
-    def __init__(self, path: Path, fd: int, repaired: int):
+    def __init__(self, path: Path, fd: int, repaired: int, created: bool = False):
         self.path, self.fd, self.repaired = path, fd, repaired
+        self.created, self.appended = created, 0  # a file this run created is removed if nothing was appended
         self.done: set = set()
         self.skipped = 0  # lines that are not records
         self._unsynced, self._last_sync = 0, time.monotonic()
@@ -144,10 +146,11 @@ class ResultsFile:
         """Lock `path` (creating it), cut a torn tail, and read the episode keys already there."""
         path = Path(path)
         _check_path(path)
+        created = not path.exists()
         fd = _open_fd(path)
         _lock(fd, path)
         try:
-            store = cls(path, fd, repair_tail(fd))
+            store = cls(path, fd, repair_tail(fd), created)
             store._read(spec_hash)
         except BaseException:
             os.close(fd)
@@ -178,6 +181,7 @@ class ResultsFile:
                                f"every finished episode before it is kept") from None
             raise ResultsError(f"cannot write {self.path} ({exc.strerror})") from None
         self.done.add(key)
+        self.appended += 1
         self._unsynced += 1
         if self._unsynced >= FSYNC_RECORDS or time.monotonic() - self._last_sync >= FSYNC_SECONDS:
             self.sync()
@@ -195,8 +199,12 @@ class ResultsFile:
         self._unsynced, self._last_sync = 0, time.monotonic()
 
     def close(self) -> None:
-        """Sync, unlock and close."""
+        """Sync, unlock and close; a file this run created and wrote nothing to is removed (a run that
+        failed before its first episode leaves no empty results file behind)."""
         if self.fd >= 0:
+            if self.created and not self.appended and os.fstat(self.fd).st_size == 0:
+                with contextlib.suppress(OSError):
+                    self.path.unlink()
             self.sync()
             os.close(self.fd)
             self.fd = -1
