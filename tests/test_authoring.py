@@ -122,8 +122,13 @@ def test_adapt_test_runs_the_solvability_check(spec, capsys):
 def test_new_skeletons_validate(spec, kind, capsys):
     assert main(["new", kind, "zoe", "--spec", "spec"]) == 0
     path = spec / ("personas" if kind == "persona" else "tasks") / "zoe.yaml"
+    out = capsys.readouterr().out.splitlines()
+    assert out[0] == f"wrote {path.relative_to(spec.parent)}"  # every file written or changed is named
     if kind == "persona":
         assert "unseen: [ana, zoe]" in (spec / "splits.yaml").read_text()  # every persona is unseen once
+        assert out[1].startswith("changed spec/splits.yaml: added zoe"), out
+    else:
+        assert not any(line.startswith("changed") for line in out), out
     assert "TODO" in path.read_text() and path.read_text().startswith("#")
     domain, diags = compile_spec([spec])
     assert domain is not None, [d.render() for d in diags]

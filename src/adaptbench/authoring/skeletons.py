@@ -101,9 +101,9 @@ def add_to_splits(spec, ident: str) -> str:
     found = [(len([x for x in m["ids"].split(",") if x.strip()]), i, m) for i, line in enumerate(lines)
              if (m := _UNSEEN.match(line.rstrip("\n")))]
     if not found:
-        return f"add {ident} to the `unseen` list of one split in {path} (every persona is unseen in exactly one)"
+        return f"to do: add {ident} to the `unseen` list of one split in {path} (every persona is unseen in exactly one)"
     _, i, m = min(found, key=lambda f: (f[0], f[1]))
     ids = m["ids"].rstrip()
     lines[i] = f"{m['head']}{ids}{', ' if ids.strip() else ''}{ident}{m['tail']}\n"
     path.write_text("".join(lines))
-    return f"added {ident} to the unseen personas of a split in {path} (line {i + 1})"
+    return f"changed {path}: added {ident} to the unseen personas of a split (line {i + 1})"

@@ -48,11 +48,12 @@ def _cmd_new(args) -> int:
         return 1
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(text)
-    print(f"wrote {path}: fill in the TODOs, then `adapt validate {args.spec}`")
-    if args.kind == "persona":
+    print(f"wrote {path}")
+    if args.kind == "persona":  # every file written or changed is named, one a line
         note = add_to_splits(args.spec, args.id)
         if note:
             print(note)
+    print(f"next: fill in the TODOs, then `adapt validate {args.spec}`")
     return 0
 
 
