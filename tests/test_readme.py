@@ -41,3 +41,37 @@ def test_import_adaptbench_is_lazy_and_every_public_name_resolves():
         assert "no_such_name" in str(exc)
     else:
         raise AssertionError("an unknown name must raise AttributeError")
+
+
+def _extras():
+    import tomllib
+
+    return tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["optional-dependencies"]
+
+
+def _names(reqs):
+    import re
+
+    return {re.split(r"[<>=\[ ;]", r, maxsplit=1)[0].lower() for r in reqs}
+
+
+def test_extras_match_what_each_command_needs():
+    extras = _extras()
+    models, train = _names(extras["models"]), _names(extras["train"])
+    assert {"torch", "transformers", "tokenizers", "llguidance"} <= models  # agents
+    assert not models & {"trl", "peft", "datasets", "pandas", "pyarrow"}  # only training needs those
+    assert {"adaptbench", "trl", "peft", "datasets"} <= train  # training = models + TRL, PEFT, datasets
+
+
+def test_readme_command_2_names_cpu_torch_and_ci_installs_what_it_does():
+    readme = (ROOT / "README.md").read_text()
+    start = readme.index("# 2. install and run the tests")
+    block = readme[start:readme.index("```", start)]
+    comment = "".join(line for line in block.splitlines() if line.startswith("#"))
+    assert "pip install torch==2.13.0" in comment  # the CPU build, before models pulls CUDA torch
+    install = next(line for line in block.splitlines() if line.startswith("pip install -e"))
+    ci = (ROOT / ".ci" / "run").read_text().splitlines()
+    ci_install = next(line for line in ci if line.startswith("pip install -e") and "pytest" in line)
+    assert install.split(" && ")[0] == ci_install.split(" && ")[0]  # CI runs the README's command 2
+    for extra in ("dev", "models", "serve", "train"):  # everything the tests import is installed
+        assert extra in install.split('"')[1]
