@@ -110,6 +110,16 @@ VARIANTS = [
     ("infinite float", {"personas/juan.yaml": ("number: 1", "number: 1e999")}, r"number|finite|integer"),
     ("nan", {"personas/juan.yaml": ("number: 1", "number: .nan")}, r"number|finite|integer"),
     ("negative huge", {"personas/juan.yaml": ("number: 1", "number: -" + "9" * 30)}, r"number|large"),
+    # every place the spec takes a number: a persona's `number` (above), a split's `id`, a count in a rule
+    ("huge split id", {"splits.yaml": ("id: 0", "id: " + "9" * 5000)}, r"S014.*number|large"),
+    ("negative huge split id", {"splits.yaml": ("id: 0", "id: -" + "9" * 5000)}, r"S014.*number|large"),
+    ("infinite split id", {"splits.yaml": ("id: 0", "id: .inf")}, r"split|integer|number"),
+    ("huge count in a rule 5000 digits", _rule("for savory: count(it, spice) >= " + "9" * 5000),
+     r"D111.*out of range"),
+    ("huge count in a rule 40 digits", _rule("for savory: count(it, spice) > " + "9" * 40), r"D111.*out of range"),
+    ("count in a rule just over the limit", _rule("for savory: count(it, spice) > 1000001"), r"D111"),
+    ("exponent count in a rule", _rule("for savory: count(it, spice) > 1e999"), r"R001"),
+    ("negative count in a rule", _rule("for savory: count(it, spice) > -1"), r"R001"),
     ("huge float in a list", _raw("objects: [" + "9" * 400 + ".5]\n"), r"error"),
     ("duplicate key", {"personas/juan.yaml": ("name: Juan", "name: Juan\nname: Juan")}, r"S001"),
     # rules

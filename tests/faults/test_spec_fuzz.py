@@ -18,7 +18,8 @@ from .hostile import HOSTILE, VARIANTS, make_spec
 TIME_BUDGET = 30  # seconds per command, process start included
 LOCATED = re.compile(r"^\S+:\d+:\d+: error\[[A-Z]\d{3}\]: ", re.M)
 QUICK = {"cycle of two", "flow nesting 100000", "alias bomb 9x9", "rule nested 500 deep", "broken brace in success",
-         "id with a trailing newline", "latin-1 byte in actions", "huge integer 5000 digits"}
+         "id with a trailing newline", "latin-1 byte in actions", "huge integer 5000 digits",
+         "huge count in a rule 5000 digits", "huge split id"}
 
 
 def _check(spec, expected: str) -> None:

@@ -81,7 +81,8 @@ def rule_at(draft: Draft, doc: LoadedDoc, path: tuple, text: str) -> A.Rule | No
         rule = parse_rule(text)
     except RuleSyntaxError as exc:
         col = exc.col + (col_off if exc.line == 1 else 0)
-        draft.error(Where(doc.file, exc.line + line_off, col), "R001", f"rule syntax error: {exc.message}")
+        what = "rule syntax error: " if exc.code == "R001" else ""
+        draft.error(Where(doc.file, exc.line + line_off, col), exc.code, f"{what}{exc.message}")
         return None
     return replace(A.shift(rule, line_off, col_off), file=doc.file)
 

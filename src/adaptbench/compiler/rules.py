@@ -128,11 +128,32 @@ def _name(tok: Token) -> A.ClsName:
 
 
 class RuleSyntaxError(AdaptError, ValueError):
-    """A rule that does not parse: message, and 1-based line/col inside the rule text."""
+    """A rule that does not parse: message, and 1-based line/col inside the rule text; `code` is the diagnostic."""
+
+    code = "R001"
 
     def __init__(self, message: str, line: int, col: int):
         super().__init__(message)
         self.message, self.line, self.col = message, line, col
+
+
+class RuleNumberError(RuleSyntaxError):
+    """A number in a rule outside what a count can be (D111)."""
+
+    code = "D111"
+
+
+MAX_RULE_NUMBER = 10**6  # a count of things in one breakfast; larger is a typo (and 4300+ digits crash int())
+
+
+def _check_numbers(tree) -> None:
+    """Every number in a rule is a plausible count, checked on the token text before int() sees it."""
+    for tok in tree.scan_values(lambda v: isinstance(v, Token) and v.type == "INT"):
+        digits = str(tok).lstrip("0")
+        if len(digits) > len(str(MAX_RULE_NUMBER)) or (digits and int(digits) > MAX_RULE_NUMBER):
+            shown = str(tok) if len(tok) <= 20 else f"{str(tok)[:8]}...({len(tok)} digits)"
+            raise RuleNumberError(f"number {shown} is out of range: a count in a rule is 0..{MAX_RULE_NUMBER:,}",
+                                  tok.line, tok.column)
 
 
 def _explain(exc: UnexpectedInput, text: str) -> str:
@@ -171,6 +192,7 @@ def parse_rule(text: str) -> A.Rule:
             line, col = len(lines), len(lines[-1]) + 1
         raise RuleSyntaxError(_explain(exc, text), line, col) from None
     _check_depth(tree)
+    _check_numbers(tree)
     rule = _ToAst().transform(tree)
     return A.Rule(rule.line, rule.col, rule.scope, rule.expr, text)
 
