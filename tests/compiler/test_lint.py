@@ -76,3 +76,28 @@ def test_warns_for_a_preference_against_a_completion_rule(domain):
     assert "on a task with smoothie" in found[1] and "needs fruit" in found[1]
     assert "every parfait needs yoghurt" in found[2]
     assert "allows only" in found[3] and "smoothie" in found[3]
+
+
+def test_shipped_spec_validates_silently_and_adapt_test_lists_what_it_acknowledges(capsys):
+    """The paper's oatmeal/pancake preferences apply to no task (L001): acknowledged in the spec (`expected_lint`),
+    so `adapt validate spec` prints no warning, and `adapt test` names each acknowledgement."""
+    from pathlib import Path
+
+    from adaptbench.cli import main
+    from adaptbench.compiler import compile_spec
+    from adaptbench.compiler.lint import acknowledged
+    from adaptbench.qa.spectest import Report, _validate
+
+    spec = Path(__file__).resolve().parents[2] / "spec"
+    domain, diags = compile_spec([spec])
+    assert [d.render() for d in diags] == []
+    assert main(["validate", str(spec)]) == 0
+    out = capsys.readouterr()
+    assert "warning" not in out.out + out.err
+    assert sorted((p, c) for p, _, c, _ in acknowledged(domain)) == [
+        ("carlos", "L001"), ("jamal", "L001"), ("maria", "L001"), ("miranda", "L001"), ("rachel", "L001")]
+    report = Report(str(spec))
+    _validate(report, spec, strict=True)
+    check = next(c for c in report.checks if c.name == "lint")
+    assert check.ok and "5 expected" in check.summary  # acknowledged warnings do not fail --strict
+    assert any(d.startswith("expected L001 on jamal.oatmeal_with_milk: ") for d in check.details)

@@ -248,7 +248,8 @@ def add_persona(draft: Draft, doc: LoadedDoc) -> None:
     for i, p in enumerate(data["preferences"]):
         rule = rule_at(draft, doc, ("preferences", i, "rule"), p["rule"])
         if rule is not None:
-            prefs.append(Preference(p["id"], p["text"], rule, tuple(p["topics"]), p.get("answer", "")))
+            prefs.append(Preference(p["id"], p["text"], rule, tuple(p["topics"]), p.get("answer", ""),
+                                    tuple(sorted(p.get("expected_lint", {}).items()))))
         draft.claim(f"preference of {data['id']}", p["id"], draft.at(doc, ("preferences", i, "id")))
         draft.where[("rule", data["id"], p["id"])] = draft.at(doc, ("preferences", i, "rule"))
     draft.personas.append(Persona(data["id"], data["name"], int(data.get("number", 0)),

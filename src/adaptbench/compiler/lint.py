@@ -93,6 +93,30 @@ def lint(domain: CompiledDomain, where: dict) -> list:
         out += _conflicts(domain, p, where, items, rooms)
         out += _conditional_conflicts(domain, p, where, items, rooms)
         out += _against_completion(domain, p, where, items, rooms)
+    return _acknowledge(domain, where, out)
+
+
+def acknowledged(domain: CompiledDomain) -> list:
+    """(persona, preference, code, why) for every linter warning the spec declares expected (`expected_lint`)."""
+    return [(p.id, pref.id, code, why) for p in domain.personas for pref in p.preferences
+            for code, why in pref.expected_lint]
+
+
+def _acknowledge(domain: CompiledDomain, where: dict, diags: list) -> list:
+    """Drop the warnings a preference's `expected_lint` acknowledges (reported on that preference's rule line);
+    an acknowledged warning the linter no longer gives is L006, so stale acknowledgements do not pile up."""
+    out, seen = list(diags), set()
+    for pid, prid, code, _ in acknowledged(domain):
+        w = where.get(("rule", pid, prid))
+        if w is None:
+            continue
+        hit = [d for d in out if d.code == code and d.severity == "warning" and (d.path, d.line) == (w.file, w.line)]
+        if hit:
+            seen.add((pid, prid, code))
+            out = [d for d in out if d not in hit]
+        else:
+            out.append(Diagnostic(w.file, w.line, w.col, "L006", f"preference '{prid}' declares expected_lint "
+                                  f"{code}, which the linter no longer reports: remove it", "warning"))
     return out
 
 

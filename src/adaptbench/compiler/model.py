@@ -179,6 +179,7 @@ class Preference:
     rule: A.Rule
     topics: tuple
     answer: str = ""
+    expected_lint: tuple = ()  # (code, why): linter warnings the spec acknowledges for this preference
 
 
 @dataclass(frozen=True)

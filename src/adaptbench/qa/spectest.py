@@ -71,9 +71,12 @@ def _validate(report: Report, spec, strict: bool):
         return None
     counts = ", ".join(f"{v} {k}" for k, v in domain.counts().items())
     report.checks.append(Check("validate", True, f"{counts} (spec hash {domain.spec_hash})"))
+    from ..compiler.lint import acknowledged
+
+    known = [f"expected {code} on {pid}.{prid}: {why}" for pid, prid, code, why in acknowledged(domain)]
     report.checks.append(Check("lint", not (strict and warnings),
-                               f"{len(warnings)} warning(s)" + (" (--strict: warnings fail)" if strict else ""),
-                               tuple(warnings)))
+                               f"{len(warnings)} warning(s)" + (f", {len(known)} expected (expected_lint)" if known else "")
+                               + (" (--strict: warnings fail)" if strict else ""), tuple(warnings + known)))
     return domain
 
 
