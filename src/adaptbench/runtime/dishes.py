@@ -6,6 +6,8 @@ Vocabulary (docs/rules.md, *The table as a person sees it*):
 - a *piece* is one top-level thing in a dish's vessel: a poured/cooked content or an object placed in it;
 - a *maker* piece is the product of cooking or mixing (a result whose verb is not a cutting verb) or a
   piece that was heated; the dish was *made* when its last maker arrived in the vessel;
+- an object set on the plate that was not cooked with the dish (toast, half an avocado beside scrambled
+  eggs), before or after the dish arrived, is *placed* on it: a side of it, not what made it;
 - *topped with*: pieces that arrived after the dish was made (or, with no maker, after its first piece)
   and were not heated with it; *made with*: every other piece (the makers, what went in before them, what
   was heated in the vessel after it arrived) and, in a dish with no maker (cereal, parfait), every piece;
@@ -105,18 +107,33 @@ def _is_maker(world: World, node: Node) -> bool:
     return bool(node.inputs) and node.verb != "chop" and world.domain.verbs.get(node.verb) != "cutting"
 
 
+def _set_beside(world: World, tops: list, here: dict) -> tuple:
+    """(makers, beside): a dish cooked here or poured in cooked (scrambled eggs) is made by those pieces; food
+    set on the same plate that was not cooked with it (a slice of toast heated elsewhere, half an avocado),
+    before or after it, is beside it, i.e. a side; what is sprinkled or poured on it cold (salt, cilantro)
+    stays a topping. A plate of such pieces only (toast, avocado toast) is made by them as before."""
+    makers = [t for t in tops if _is_maker(world, t)]
+    cooked = [t for t in makers if t.inputs or here[t.nid]]  # mixed or cooked food, or heated in this vessel
+    if not cooked:
+        return makers, []
+    return cooked, [t for t in tops if t not in cooked and not here[t.nid] and (t.entity is not None or t.heated)]
+
+
 def _dish(world: World, key: str, container: str | None, place: str, tops: list) -> Dish:
     tops = sorted(tops, key=lambda t: (t.arrived, t.nid))
-    makers = [t for t in tops if _is_maker(world, t)]
+    here = {t.nid: any(h >= t.arrived for h in t.heated) for t in tops}  # heated in this vessel
+    makers, beside = _set_beside(world, tops, here)
     base = makers[-1] if makers else tops[0]
     dish = Dish(key, container, place, max(_reached(world, key, place), base.arrived), tops=tops,
                 water=world.domain.engine.water)
     for t in tops:
         leaves = _leaves(dish, t)
-        heated_here = any(h >= t.arrived for h in t.heated)
+        heated_here = here[t.nid]
+        if t in beside and t.arrived <= base.arrived:  # set down before the dish came: still beside it
+            dish.placed.extend(leaves)
         if t is not base and t.arrived > base.arrived and not heated_here and t not in makers:
             dish.topped.extend(leaves)
-            if t.entity is not None:
+            if t.entity is not None or t in beside:
                 dish.placed.extend(leaves)
             if makers:
                 continue
