@@ -133,13 +133,59 @@ def action_forms(actions, verbs) -> tuple[tuple, tuple]:
     return tuple(actions), tuple(sorted((aid, v) for aid, _, _, _, v in hits))
 
 
+_IRREGULAR = {"knife": "knives", "loaf": "loaves", "leaf": "leaves", "half": "halves", "shelf": "shelves",
+              "potato": "potatoes", "tomato": "tomatoes", "mango": "mangoes", "person": "people",
+              "mouse": "mice", "tooth": "teeth", "foot": "feet", "child": "children", "cheese": "cheeses"}
+# mass nouns a person does not put in the plural ("look for milk", never "milks")
+_MASS = frozenset(("milk", "water", "butter", "rice", "oatmeal", "muesli", "granola", "honey", "sugar", "salt",
+                   "coffee", "tea", "yoghurt", "yogurt", "cream", "oil", "flour", "syrup", "juice", "jam", "bread",
+                   "pepper", "cinnamon", "cardamom", "nutmeg", "ketchup", "mayonnaise", "mustard", "hummus",
+                   "guacamole", "bacon", "toast", "food", "cutlery", "cookware", "dinnerware",
+                   "drinkware", "equipment", "furniture", "spinach", "asparagus", "broccoli", "lettuce", "garlic",
+                   "parsley", "basil", "cilantro", "oregano", "thyme", "rosemary", "dill", "chocolate", "sauce",
+                   "yeast", "meat", "ham", "salmon", "tuna", "tofu", "quinoa"))
+
+
 def plural(word: str) -> str:
-    """A simple English plural of the last word of a phrase (eggs, berries, peaches, tomatoes)."""
-    if re.search(r"[^aeiou]y$", word):
-        return word[:-1] + "ies"
-    if re.search(r"(s|sh|ch|x|z|o)$", word):
-        return word + "es"
-    return word + "s"
+    """The English plural of the last word of a phrase (eggs, berries, peaches, tomatoes, knives)."""
+    head, _, last = word.rpartition(" ")
+    if last in _IRREGULAR:
+        out = _IRREGULAR[last]
+    elif re.search(r"[^aeiou]y$", last):
+        out = last[:-1] + "ies"
+    elif re.search(r"(s|sh|ch|x|z)$", last):
+        out = last + "es"
+    else:
+        out = last + "s"
+    return f"{head} {out}" if head else out
+
+
+def countable(word: str, nouns: frozenset) -> bool:
+    """Whether a phrase ends in a countable noun in the singular (a thing of the catalogue a person counts),
+    so its plural is a word a person would type: not an adjective (`wooden`), a plural (`eggs`), a mass noun."""
+    last = word.rpartition(" ")[2]
+    if last not in nouns or last in _MASS:
+        return False
+    return not (last.endswith("s") and not last.endswith(("ss", "us")))
+
+
+# the catalogue's tags that describe (what a thing is like or made of) rather than name what it is
+_DESCRIBING = frozenset(("aluminium", "caffeinated", "iron", "ceramic", "decaf", "dried", "durable", "edible", "fancy",
+                         "flavored", "fresh", "frozen", "fat", "glass", "free", "herbal", "protein", "calorie",
+                         "metal", "microwaveable", "movable", "stick", "based", "openable", "plain", "plastic",
+                         "porcelain", "processed", "raw", "salted", "savory", "sharp", "silicone", "simple", "spicy",
+                         "stainless", "sweet", "vegan", "grain", "wooden", "dairy", "liquid", "source", "storage",
+                         "cleaning", "citrus", "sugar"))
+
+
+def _nouns(domain: CompiledDomain) -> frozenset:
+    """Nouns of the catalogue, last word of each: the categories of things and substances, the names of objects
+    (pan_0 -> pan) and the tags that name a kind of thing (spice, vegetable, sweetener; not fresh, wooden)."""
+    names = {e.category for e in domain.entities} | {s.category for s in domain.substances}
+    names |= {re.sub(r"_\d+$", "", e.id) for e in domain.entities if e.kind == "movable"}
+    tags = {t for x in (*domain.entities, *domain.substances) for t in x.tags}
+    names |= {t for t in tags if t.rsplit("_", 1)[-1] not in _DESCRIBING}
+    return frozenset(n.rsplit("_", 1)[-1] for n in names if n)
 
 
 def _phrases_of(spec, domain) -> set:
@@ -157,7 +203,8 @@ def _phrases_of(spec, domain) -> set:
 
 def _categories(domain: CompiledDomain) -> tuple:
     """`Look for` phrases: categories, tags, substance and id names, description words and word
-    pairs ('peanut butter'), each also in the plural (the runtime's search reads plurals)."""
+    pairs ('peanut butter'), those ending in a countable noun also in the plural, the last word only and the
+    irregular ones right ('bread knives'; the runtime's search reads plurals)."""
     keys: set = set()
     for spec in (*domain.entities, *domain.substances):
         keys |= _phrases_of(spec, domain)
@@ -165,7 +212,8 @@ def _categories(domain: CompiledDomain) -> tuple:
         keys |= {w for w in words if len(w) > 2 and w not in _STOP}
         keys |= {f"{a}_{b}" for a, b in zip(words, words[1:], strict=False) if not {a, b} & _STOP}
     phrases = {k.replace("_", " ") for k in keys if re.fullmatch(r"[a-z][a-z_]*[a-z]", k)}
-    phrases |= {plural(p) for p in phrases}
+    nouns = _nouns(domain)
+    phrases |= {plural(p) for p in phrases if countable(p, nouns)}
     return tuple(sorted(phrases))
 
 

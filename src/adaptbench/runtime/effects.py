@@ -42,7 +42,8 @@ def reveal_in(world: World, params: dict, b: dict, ctx) -> str:
     return intro + found(world, new)
 
 
-_PLURAL = [("ies", "y"), ("oes", "o"), ("ches", "ch"), ("shes", "sh"), ("ses", "s"), ("s", "")]
+_PLURAL = [("ies", "y"), ("oes", "o"), ("ches", "ch"), ("shes", "sh"), ("ses", "s"), ("ves", "f"), ("ves", "fe"),
+           ("s", "")]
 
 
 @lru_cache(maxsize=8192)
