@@ -75,3 +75,13 @@ def test_readme_command_2_names_cpu_torch_and_ci_installs_what_it_does():
     assert install.split(" && ")[0] == ci_install.split(" && ")[0]  # CI runs the README's command 2
     for extra in ("dev", "models", "serve", "train"):  # everything the tests import is installed
         assert extra in install.split('"')[1]
+
+
+def test_readme_table_has_every_column_adapt_eval_prints():
+    """The README's results table is `adapt eval --markdown` output: every column, pass^k and question
+    precision included, and the line that says which k."""
+    from adaptbench.harness.evaluate import HEADER
+
+    readme = (ROOT / "README.md").read_text()
+    assert "| " + " | ".join(HEADER) + " |" in readme
+    assert "pass^k: k=4 for every row" in readme

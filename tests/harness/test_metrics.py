@@ -57,11 +57,11 @@ def test_table_renders_both_metrics_and_na():
     rows = table(recs)
     text = render_text(rows)
     assert "pass^k" in text and "Question precision" in text
-    assert "100.0% (1/1, k=2)" in text and "100.0% (2/2)" in text and "n/a" in text
+    assert "100.0% (1/1, k=1)" in text and "100.0% (2/2)" in text and "n/a" in text  # one k: agent old has 1 seed
     csv_lines = render_csv(rows).splitlines()
     assert csv_lines[0].endswith("pass_k_left_out,question_precision,questions_precise,questions_judged")
     x_row = next(line for line in csv_lines if line.startswith("x,"))
-    assert x_row.split(",")[-9:] == ["1", "1", "1", "2", "2", "0", "1", "2", "2"]
+    assert x_row.split(",")[-9:] == ["1", "1", "1", "1", "1", "0", "1", "2", "2"]  # k_min = k_max = 1: one k for all rows
 
 
 class _Asker(Policy):
@@ -118,3 +118,18 @@ def test_any_users_questions_are_judged_by_the_offline_matcher(domain):
     env = Env(domain, "eggs", persona.id, 0, user=lambda q, dialogue: "Whatever you like.")  # e.g. an LLM user
     asked, _done = run_episode(_Asker([question]), env).steps
     assert asked.reply == "Whatever you like." and pref.id in asked.targets
+
+
+def test_one_k_for_every_row_the_smallest_number_of_seeds_every_pair_has():
+    """Agent a ran seeds 0-2, agent b seeds 0-1: both rows use k=2 (a's seed 2 is not counted), and the
+    table says which k."""
+    recs = [_rec("p", "eggs", s, 1.0 if s < 2 else 0.5, violated=int(s == 2), agent="a") for s in (0, 1, 2)]
+    recs += [_rec("p", "eggs", s, 1.0, agent="b") for s in (0, 1)]
+    rows = {r["agent"]: r for r in table(recs)}
+    assert rows["a"]["pass_k"].k_text == rows["b"]["pass_k"].k_text == "2"
+    assert rows["a"]["pass_k"].passed == 1  # failed only in seed 2, which k=2 does not count
+    from adaptbench.harness.evaluate import notes
+
+    assert any(line.startswith("pass^k: k=2 for every row, the smallest number of scene seeds") for line in
+               notes(list(rows.values())))
+    assert "100.0% (1/1, k=2)" in render_text(list(rows.values()))

@@ -9,7 +9,7 @@ import csv
 import io
 import math
 
-from .metrics import pass_k, precision
+from .metrics import common_k, pass_k, precision
 
 
 def load_records(paths, splits=None) -> list:
@@ -45,6 +45,7 @@ def table(records: list, unseen: dict | None = None) -> list:
     """Rows of `EpisodeRecord`s: agent, n, rate seen/unseen (mean, se), questions seen/unseen (mean, se).
     `unseen` (the domain's splits) is needed only when some record has a `split`."""
     agents = sorted({r.agent for r in records}, key=lambda a: _order(a))
+    k = common_k(records)  # one k for every row: the smallest number of seeds every pair has
     rows = []
     for a in agents:
         cols = {"seen": ([], []), "unseen": ([], [])}
@@ -56,7 +57,7 @@ def table(records: list, unseen: dict | None = None) -> list:
                     cols[col][0].append(r.satisfaction_rate)
                 cols[col][1].append(r.questions)
         mine = [r for r in records if r.agent == a]
-        rows.append({"agent": a, "episodes": len(mine), "pass_k": pass_k(mine), "precision": precision(mine),
+        rows.append({"agent": a, "episodes": len(mine), "pass_k": pass_k(mine, k), "precision": precision(mine),
                      "rate_seen": mean_se(cols["seen"][0]), "rate_unseen": mean_se(cols["unseen"][0]),
                      "questions_seen": mean_se(cols["seen"][1]), "questions_unseen": mean_se(cols["unseen"][1])})
     return rows
@@ -101,6 +102,11 @@ def cells(row: dict) -> list:
 def notes(rows: list) -> list:
     """Lines said under the table: pairs left out of pass^k, questions in records too old to judge."""
     out = []
+    ks = {r["pass_k"].k_text for r in rows if r["pass_k"].k_text}
+    if len(ks) == 1:
+        k = ks.pop()
+        out.append(f"pass^k: k={k} for every row, the smallest number of scene seeds every (agent, persona, task) "
+                   f"pair has; a pair with more seeds counts its first {k}")
     left = sum(r["pass_k"].left_out for r in rows)
     if left:
         out.append(f"{left} (agent, persona, task) pair(s) had no applicable preference in any seed and are "

@@ -1,8 +1,9 @@
 """Episode-set metrics beyond the mean satisfaction rate (`adapt eval` shows them per agent).
 
 - pass^k over scene seeds: the share of (agent, persona, task) pairs whose episodes are fully
-  satisfied (every applicable preference satisfied, none violated) in all k seeds present; k is the
-  number of seeds per pair in the file (reported; a range when pairs differ). Pairs in which no
+  satisfied (every applicable preference satisfied, none violated) in all k seeds; `adapt eval` uses ONE k
+  for every row, the smallest number of seeds every (agent, persona, task) pair has (`common_k`), each
+  pair counting its first k seeds (lowest seed numbers), and says which k under the table. Pairs in which no
   preference applied in any episode are left out and counted; episodes with no applicable
   preference inside a counted pair are ignored.
 - question precision: the share of questions whose answer named a preference that applies to the
@@ -60,11 +61,25 @@ def fully_satisfied(record) -> bool:
     return record.satisfaction_rate is not None and not record.violated and record.satisfaction_rate == 1
 
 
-def pass_k(records: list) -> PassK:
-    """pass^k of one agent's episode records (see the module docstring)."""
+def common_k(records: list) -> int | None:
+    """The smallest number of seeds every (agent, persona, task) pair of `records` has (None for no records):
+    the one k of pass^k for a whole table, so its rows compare."""
+    seeds = defaultdict(set)
+    for r in records:
+        seeds[(r.agent, r.persona, r.task)].add(r.seed)
+    return min((len(s) for s in seeds.values()), default=None)
+
+
+def pass_k(records: list, k: int | None = None) -> PassK:
+    """pass^k of one agent's episode records (see the module docstring); with `k`, each pair counts only its
+    first k seeds (the lowest), so every pair and every agent is judged on the same number of seeds."""
     pairs = defaultdict(list)
     for r in records:
         pairs[(r.persona, r.task)].append(r)
+    if k is not None:
+        for key, recs in pairs.items():
+            keep = set(sorted({r.seed for r in recs}, key=lambda s: (s is None, s))[:k])
+            pairs[key] = [r for r in recs if r.seed in keep]
     counted = {key: [r for r in recs if r.satisfaction_rate is not None] for key, recs in pairs.items()}
     counted = {key: recs for key, recs in counted.items() if recs}
     seeds = [len({r.seed for r in pairs[key]}) for key in counted]
