@@ -85,3 +85,18 @@ def test_no_command_prints_help(capsys):
                                   ["rollout", "--agent", "oracle", "--personas", "nobody", "--out", "x.jsonl"]])
 def test_rollout_bad_names_are_usage_errors(argv, capsys):
     assert main(argv + ["--spec", str(SPEC)]) == 2
+
+
+def test_play_reads_the_verb_in_any_case_and_a_mistyped_line_uses_no_step(monkeypatch, capsys):
+    """`adapt play`: `look for eggs` is `Look for eggs`; `Cook eggs` is no action, uses no step and names the
+    cook form with the pan the player has seen; the step numbers show what counted (docs/agents.md)."""
+    lines = "look for pan\nLOOK FOR eggs\nMove egg_0 to pan_1\nCook eggs\nTurn on stove_9\nDeclare Done\n"
+    monkeypatch.setattr("sys.stdin", io.StringIO(lines))
+    assert main(["play", "--task", "eggs", "--persona", "juan", "--full-scene"]) == 0
+    out = capsys.readouterr().out
+    assert "[ 1] ok  Look for pan" in out and "[ 2] ok  Look for eggs" in out
+    assert "[ 3] ok  Move egg_0 to pan_1" in out
+    assert "not an action (no step used): did you mean 'Cook items in pan_1 to get cooked_eggs'?" in out
+    assert "[ 4] ERR Turn on stove_9" in out  # parses, fails: a step, as in rollouts
+    assert "[ 5] ok  Declare Done" in out
+    assert "Look for apple" not in out

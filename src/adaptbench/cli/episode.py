@@ -108,9 +108,24 @@ def _cmd_play(args) -> int:
                 print(f"  {' | '.join(a.forms):<60} e.g. {a.example}")
             continue
         if text:
-            _print_step(env.world.step + 1, text, env.step(text))
+            _play_line(domain, env, text)
     print(format_verdicts(env.evaluate()))
     return 0
+
+
+def _play_line(domain, env, text: str) -> None:
+    """One typed line: the verb in any case; a line that is no action uses no step and names the nearest one."""
+    from .typed import fix_case, suggest
+
+    fixed = fix_case(domain, text)
+    if env.index.parser.parse(fixed) is None:
+        near = suggest(domain, env.world, text)
+        hint = f"did you mean '{near}'? " if near else ""
+        print(f"       not an action (no step used): {hint}type 'help' for the action forms")
+        return
+    if fixed != text:
+        print(f"       (read as '{fixed}')")
+    _print_step(env.world.step + 1, fixed, env.step(fixed))
 
 
 def add_spec_option(p) -> None:
@@ -140,7 +155,9 @@ def add_commands(sub) -> None:
 
     p = sub.add_parser("play", help="play an episode in the terminal",
                        description="Type actions (e.g. 'Look for eggs', 'Ask \"How do you like your eggs?\"'); "
-                                   "'Declare Done' ends the episode and prints the verdicts.")
+                                   "'Declare Done' ends the episode and prints the verdicts. The first words may be "
+                                   "in any case; a line that is no action uses no step and names the nearest one "
+                                   "(an action that fails, e.g. a precondition, uses a step, as in rollouts).")
     _common(p)
     p.add_argument("--seed", type=seed, default=0, help="scene seed (default 0)")
     p.add_argument("--full-scene", action="store_true", help="include every object")
