@@ -72,7 +72,7 @@ class AdaptEnv(gym.Env):
         self.session = Session.open(self.domain, options.get("task", self.task), options.get("persona", self.persona),
                                     scene_seed, options.get("user", self.user), self.reward_mode, self.max_steps,
                                     options.get("prior", ()))
-        self._last = self._clean(self.session.opening())
+        self._last = self.session.opening()  # the spec's own text only: inside the charset by construction
         info = self.session.info()
         if self.want_grammar:
             info["grammar"] = self.session.grammar()
@@ -97,7 +97,7 @@ class AdaptEnv(gym.Env):
     def _clean(self, text: str) -> str:
         """The observation inside the observation space: a character outside the spec's (only possible when
         the simulator echoes an action's odd characters) becomes '?'; the length is capped."""
-        if not all(c in self._chars for c in text):
+        if not self._chars.issuperset(text):
             text = "".join(c if c in self._chars else "?" for c in text)
         return text[:MAX_OBSERVATION_CHARS]
 

@@ -37,9 +37,10 @@ class Outcome:
 def pick(domain: CompiledDomain, seed: int, task: str | None = None, persona: str | None = None) -> tuple:
     """(task, persona) for an episode: the given ones, else drawn from `seed` (the same seed, the same
     draw, in any process). KeyError names the unknown id and the choices."""
-    rng = random.Random(seed)
-    task = task if task is not None else rng.choice([t.id for t in domain.tasks])
-    persona = persona if persona is not None else rng.choice([p.id for p in domain.personas])
+    if task is None or persona is None:
+        rng = random.Random(seed)
+        task = task if task is not None else rng.choice([t.id for t in domain.tasks])
+        persona = persona if persona is not None else rng.choice([p.id for p in domain.personas])
     if task not in domain.task:
         raise KeyError(f"unknown task '{task}' (tasks: {', '.join(domain.task)})")
     if persona not in domain.persona:
