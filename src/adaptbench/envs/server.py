@@ -89,7 +89,8 @@ class Sessions:
         sid = _field(body, "session_id", str)
         entry = self._open.get(sid)
         if entry is None or time.monotonic() - entry[1] > self.limits.timeout:
-            self._open.pop(sid, None)
+            if self._open.pop(sid, None) is not None:
+                self.expired += 1
             raise BadRequest(404, f"unknown or expired session '{sid[:80]}' (sessions time out after "
                                   f"{self.limits.timeout:g} s idle; POST /reset opens one)")
         entry[1] = time.monotonic()
