@@ -28,3 +28,13 @@ def oracle_mix(domain):
     combos = [("eggs", "juan", 0), ("toast_coffee", "ron", 1), ("cereal_coffee", "sarah", 2), ("tea_eggs", "lisa", 3),
               ("parfait", "maya", 0), ("omelette", "carlos", 1), ("tea_toast", "ethan", 2), ("cereal", "rachel", 3)]
     return [oracle_episode(domain, *c) for c in combos]
+
+
+@pytest.fixture(scope="session")
+def tiny(domain, tmp_path_factory):
+    """The tiny model's directory (built once, as tests/llm does)."""
+    pytest.importorskip("tokenizers", reason="models extra not installed")
+    pytest.importorskip("torch", reason="models extra not installed")
+    from adaptbench.llm.tiny import init_tiny
+
+    return init_tiny(domain, tmp_path_factory.mktemp("tiny"))

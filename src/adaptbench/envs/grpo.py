@@ -109,7 +109,7 @@ def _config(s: GrpoSettings, out: Path):
                       num_generations_eval=s.generations, max_completion_length=s.max_completion,
                       max_tool_calling_iterations=s.max_tool_calls, learning_rate=s.learning_rate,
                       temperature=s.temperature, logging_steps=1, save_strategy="steps", save_steps=s.save_every,
-                      report_to="none", use_cpu=_cpu(), seed=s.seed, beta=0.0,
+                      report_to="none", use_cpu=_cpu(), gradient_checkpointing=False, seed=s.seed, beta=0.0,
                       reward_weights=[s.format_reward] if s.format_reward else None, disable_tqdm=True)
 
 
