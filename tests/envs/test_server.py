@@ -168,3 +168,13 @@ def test_64_concurrent_sessions_match_in_process(server, oracle_mix):
         expected = oracle_mix[k % len(oracle_mix)]["verdicts"]
         assert done and verdicts == expected == state_verdicts, k
     assert _healthy(server)
+
+
+def test_serve_env_command_refuses_a_busy_port_and_a_bad_one(server, capsys):
+    from adaptbench.cli.main import main
+    from tests.conftest import SPEC
+
+    assert main(["serve-env", "--spec", str(SPEC), "--port", str(server["port"])]) == 1
+    assert f"adapt: cannot listen on 127.0.0.1:{server['port']}" in capsys.readouterr().err
+    assert main(["serve-env", "--port", "70000"]) == 2
+    assert "port 70000 is out of range" in capsys.readouterr().err

@@ -17,6 +17,19 @@ def _port(text: str) -> int:
     return value
 
 
+def _unbindable(host: str, port: int) -> str | None:
+    """Why the address cannot be listened on (in use, unknown host), or None."""
+    import socket
+
+    try:
+        with socket.socket() as s:
+            s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+            s.bind((host, port))
+    except OSError as exc:
+        return exc.strerror or str(exc)
+    return None
+
+
 def _cmd_serve_env(args) -> int:
     import importlib.util
 
@@ -28,6 +41,10 @@ def _cmd_serve_env(args) -> int:
     from ..envs.server import Limits, serve
 
     domain = load_domain(args.spec)
+    problem = _unbindable(args.host, args.port)
+    if problem:
+        print(f"adapt: cannot listen on {args.host}:{args.port}: {problem}", file=sys.stderr)
+        return 1
     limits = Limits(max_sessions=args.max_sessions, timeout=float(args.timeout), max_steps=args.max_steps)
     print(f"adapt: serving {args.spec} (spec {domain.spec_hash}) on http://{args.host}:{args.port} "
           f"(at most {limits.max_sessions} sessions, {limits.timeout:g} s idle time-out); Ctrl-C stops",
