@@ -176,5 +176,7 @@ def test_serve_env_command_refuses_a_busy_port_and_a_bad_one(server, capsys):
 
     assert main(["serve-env", "--spec", str(SPEC), "--port", str(server["port"])]) == 1
     assert f"adapt: cannot listen on 127.0.0.1:{server['port']}" in capsys.readouterr().err
-    assert main(["serve-env", "--port", "70000"]) == 2
+    with pytest.raises(SystemExit) as exc:
+        main(["serve-env", "--port", "70000"])
+    assert exc.value.code == 2
     assert "port 70000 is out of range" in capsys.readouterr().err
