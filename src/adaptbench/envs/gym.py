@@ -12,6 +12,7 @@ verifiers (`envs.session.Session`). Without options, the task and persona are dr
 
 from __future__ import annotations
 
+import re
 import string
 
 import gymnasium as gym
@@ -21,6 +22,7 @@ from ..runtime.env import MAX_STEPS
 from .session import MAX_ACTION_CHARS, Session
 
 MAX_OBSERVATION_CHARS = 1 << 16
+_ASCII_OUTSIDE = re.compile(r"[\x00-\x08\x0e-\x1f\x7f]")  # the ASCII characters string.printable lacks
 
 
 def charset(domain) -> frozenset:
@@ -97,6 +99,8 @@ class AdaptEnv(gym.Env):
     def _clean(self, text: str) -> str:
         """The observation inside the observation space: a character outside the spec's (only possible when
         the simulator echoes an action's odd characters) becomes '?'; the length is capped."""
+        if text.isascii() and not _ASCII_OUTSIDE.search(text):
+            return text[:MAX_OBSERVATION_CHARS]  # printable ASCII and whitespace: always in the charset
         if not self._chars.issuperset(text):
             text = "".join(c if c in self._chars else "?" for c in text)
         return text[:MAX_OBSERVATION_CHARS]
