@@ -3,6 +3,13 @@
 verifiers imports a taskset id as a top-level module and takes the Taskset and Env subclasses it exports.
 """
 
-from adaptbench.envs.verifiers_env import AdaptTaskset, AdaptVfEnv, load_environment
+from adaptbench.envs import verifiers_env
+
+if verifiers_env.vf is None:
+    raise ImportError("adapt_breakfast needs the verifiers library: pip install 'verifiers>=0.4' "
+                      "(or pip install -e '.[verifiers]')")
+
+AdaptTaskset, AdaptVfEnv, load_environment = (verifiers_env.AdaptTaskset, verifiers_env.AdaptVfEnv,
+                                              verifiers_env.load_environment)
 
 __all__ = ["AdaptTaskset", "AdaptVfEnv", "load_environment"]
