@@ -1,7 +1,7 @@
 """`adapt train grpo`: GRPO with TRL against the environment (envs.grpo; docs/environments.md, *TRL GRPO*).
 
-`add_grpo(train_sub)` adds `grpo` to the `train` group's subparsers; `add_commands(sub)` makes a `train`
-group holding only `grpo` when no other module has made one.
+`add_grpo(train_sub)` adds `grpo` to the `train` group's subparsers; `add_commands(sub)` (called after the
+other command modules) adds it to an existing `train` group, or makes one holding only `grpo`.
 """
 
 from __future__ import annotations
@@ -91,7 +91,16 @@ def add_grpo(train_sub) -> None:
 
 
 def add_commands(sub) -> None:
-    """A `train` group with `grpo` (used until the main `train` group registers `add_grpo` itself)."""
+    """Add `grpo` to the `train` group: into the group another module registered before this call, else
+    into a `train` group of its own."""
+    import argparse
+
+    existing = sub.choices.get("train")
+    if existing is not None:
+        for action in existing._actions:  # argparse keeps a group's subcommands in this action
+            if isinstance(action, argparse._SubParsersAction):
+                add_grpo(action)
+                return
     p = sub.add_parser("train", help="train agents (grpo)", description="Train agents.")
     train_sub = p.add_subparsers(dest="train_command", metavar="COMMAND")
     add_grpo(train_sub)
