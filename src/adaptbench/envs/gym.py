@@ -85,12 +85,11 @@ class AdaptEnv(gym.Env):
         (info["ok"] False, the simulator's message as the observation), never an exception."""
         if self.session is None:
             raise gym.error.ResetNeeded("call reset() before step()")
-        out = self.session.step(action)
-        self._last = self._clean(out.observation)
-        info = out.info
-        if self.want_grammar and not (out.terminated or out.truncated):
+        obs, reward, terminated, truncated, info = self.session.step(action)
+        self._last = obs = self._clean(obs)
+        if self.want_grammar and not (terminated or truncated):
             info["grammar"] = self.session.grammar()
-        return self._last, float(out.reward), out.terminated, out.truncated, info
+        return obs, reward, terminated, truncated, info
 
     def render(self):
         """The last observation (render mode "ansi")."""

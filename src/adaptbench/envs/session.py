@@ -14,7 +14,7 @@ Gymnasium (`envs.gym`), the HTTP server (`envs.server`), TRL's environment class
 from __future__ import annotations
 
 import random
-from dataclasses import dataclass, field
+from typing import NamedTuple
 
 from ..compiler.model import CompiledDomain
 from ..runtime.env import MAX_STEPS, Env
@@ -23,15 +23,14 @@ REWARDS = ("final", "progress")
 MAX_ACTION_CHARS = 2000  # longer action text fails as a step (no action of the grammar comes near it)
 
 
-@dataclass(frozen=True)
-class Outcome:
-    """What one step returned, in the shape every interface uses."""
+class Outcome(NamedTuple):
+    """What one step returned, in the shape every interface uses (a tuple: made on every step)."""
 
     observation: str
     reward: float
     terminated: bool
     truncated: bool
-    info: dict = field(default_factory=dict)
+    info: dict
 
 
 def pick(domain: CompiledDomain, seed: int, task: str | None = None, persona: str | None = None) -> tuple:
@@ -115,18 +114,22 @@ class Session:
         """Take one action string exactly as a policy wrote it. A failed parse or a failed action is a step
         with ok=False and the simulator's message; text that is not a string, or longer than
         MAX_ACTION_CHARS, fails the same way. After the end: 'The episode is over.', nothing changes."""
-        if self.done:
-            return Outcome("The episode is over.", 0.0, self.env.world.done, not self.env.world.done,
-                           {"step": self.env.world.step, "ok": False, "action": None, "over": True})
-        text = _action_text(text)
-        r = self.env.step(text)
-        event = self.env.world.trace[-1]
+        env = self.env
+        w = env.world
+        if env.done:
+            return Outcome("The episode is over.", 0.0, w.done, not w.done,
+                           {"step": w.step, "ok": False, "action": None, "over": True})
+        if type(text) is not str or len(text) > MAX_ACTION_CHARS:
+            text = _action_text(text)
+        r = env.step(text)
+        event = w.trace[-1]
         info = {"step": event.step, "ok": r.ok, "action": event.action, "args": dict(event.args),
                 "reply": r.reply}
-        terminated = self.env.world.done
-        truncated = self.done and not terminated
-        reward = self._reward(info, terminated or truncated)
-        return Outcome(with_reply(r.observation, r.reply), reward, terminated, truncated, info)
+        terminated = w.done
+        over = terminated or w.step >= env.max_steps
+        reward = self._reward(info, over) if over or self.reward_mode != "final" else 0.0
+        obs = with_reply(r.observation, r.reply) if r.reply else r.observation
+        return Outcome(obs, reward, terminated, over and not terminated, info)
 
     def _reward(self, info: dict, over: bool) -> float:
         if self.reward_mode == "final" and not over:
