@@ -171,14 +171,15 @@ def _q(xs: list, q: float) -> float:
     return xs[min(len(xs) - 1, int(q * len(xs)))] if xs else float("nan")
 
 
-def bench_server(spec, episodes: list, levels: list, rounds: int) -> tuple:
-    """Rows for each concurrency level, and the raw figures."""
+def bench_server(spec, episodes: list, levels: list, total: int) -> tuple:
+    """Rows for each concurrency level (each plays at least `total` episodes, so that one session's
+    figures rest on as many steps as 64 sessions'), and the raw figures."""
     port = free_port()
     proc = start_server(spec, port)
     rows, figures = [], []
     try:
         for n in levels:
-            f = load(f"http://127.0.0.1:{port}", episodes, n, rounds)
+            f = load(f"http://127.0.0.1:{port}", episodes, n, -(-total // n))
             figures.append(f)
             rows.append((f"server steps/s, {n} concurrent sessions", f["steps_per_s"], "steps/s", "0 errors",
                          f"p50 {f['p50_ms']:.2f} ms, p99 {f['p99_ms']:.2f} ms, {f['episodes']} episodes, "
@@ -202,7 +203,7 @@ def main() -> int:
     levels = [int(x) for x in args.sessions.split(",")]
     episodes = oracle_episodes(domain, 8 if args.quick else max(levels))
     rows = bench_inprocess(domain, episodes, 10 if args.quick else 20)
-    server_rows, figures = bench_server(args.spec, episodes, levels, 1 if args.quick else 2)
+    server_rows, figures = bench_server(args.spec, episodes, levels, len(episodes) if args.quick else 2 * len(episodes))
     report(rows + server_rows)
     bad = [f for f in figures if f["errors"] or f["mismatches"]]
     for f in bad:
