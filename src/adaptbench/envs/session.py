@@ -13,6 +13,7 @@ Gymnasium (`envs.gym`), the HTTP server (`envs.server`), TRL's environment class
 
 from __future__ import annotations
 
+import numbers
 import random
 from typing import NamedTuple
 
@@ -75,8 +76,9 @@ class Session:
     def open(cls, domain: CompiledDomain, task: str | None = None, persona: str | None = None, seed: int = 0,
              user=None, reward: str = "final", max_steps: int = MAX_STEPS, prior=()) -> Session:
         """A fresh episode: task and persona given or drawn from `seed`; scene from `seed` (as `adapt rollout`)."""
-        if not isinstance(seed, int) or isinstance(seed, bool) or seed < 0:
+        if not isinstance(seed, numbers.Integral) or isinstance(seed, bool) or seed < 0:
             raise ValueError(f"seed must be an integer >= 0 (got {seed!r})")
+        seed = int(seed)  # numpy integers too
         task, persona = pick(domain, seed, task, persona)
         env = Env(domain, task=task, persona=persona, seed=seed, user=make_user(domain, task, persona, user),
                   max_steps=max_steps)
