@@ -54,7 +54,11 @@ def _cmd_grpo(args) -> int:
                      episode_steps=args.episode_steps, holdout=args.holdout, seeds=args.seeds,
                      eval_seeds=args.eval_seeds, eval_episodes=args.eval_episodes, learning_rate=args.lr,
                      format_reward=args.format_reward, seed=args.seed, tasks=tuple(args.task or ()))
-    r = train_grpo(s)
+    try:
+        r = train_grpo(s)
+    except ValueError as exc:  # TRL's and transformers' refusals of a model or setting: one line, not a traceback
+        print(f"adapt: train grpo: {' '.join(str(exc).split())[:400]}", file=sys.stderr)
+        return 1
     fmt = lambda x: "n/a" if x is None else f"{x:.3f}"  # noqa: E731
     print(f"held-out reward (verifiers' satisfaction rate): before {fmt(r.before)}, after {fmt(r.after)}; "
           f"{len(r.rewards)} training steps logged to {Path(args.out) / 'log.jsonl'}; adapter in "
