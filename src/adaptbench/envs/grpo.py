@@ -1,6 +1,6 @@
 """`adapt train grpo`: GRPO with TRL on ADAPT episodes, the reward from the verifiers.
 
-    result = train_grpo(GrpoSettings(model="models/tiny", spec="spec", out="runs/grpo", steps=20))
+    result = train_grpo(GrpoSettings(model="models/tiny", out="runs/grpo", steps=20))   # spec=DIR: your own
     result.before, result.after          # mean reward on the held-out personas' episodes
 
 The model is a local directory (any causal LM; a LoRA adapter is trained on it and saved to `out`). A
@@ -27,7 +27,7 @@ class GrpoSettings:
 
     model: str
     out: str
-    spec: str = "spec"
+    spec: str | None = None  # None: the paper's spec shipped with adaptbench
     steps: int = 20
     generations: int = 4
     max_completion: int = 256

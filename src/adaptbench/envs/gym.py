@@ -2,7 +2,7 @@
 
     import gymnasium as gym
     import adaptbench.envs                      # registers adaptbench/Breakfast-v0
-    env = gym.make("adaptbench/Breakfast-v0", spec="spec")
+    env = gym.make("adaptbench/Breakfast-v0")          # spec=DIR for your own spec
     obs, info = env.reset(seed=3, options={"persona": "juan", "task": "eggs"})
     obs, reward, terminated, truncated, info = env.step('Ask "How do you like your eggs?"')
 
@@ -40,18 +40,19 @@ def charset(domain) -> frozenset:
 
 
 class AdaptEnv(gym.Env):
-    """`adaptbench/Breakfast-v0`. Arguments: `spec` (a spec directory or a compiled domain), `task` and
+    """`adaptbench/Breakfast-v0`. Arguments: `spec` (a spec directory or a compiled domain; default the
+    paper's spec shipped with adaptbench, $ADAPT_SPEC overrides), `task` and
     `persona` (fixed for every episode unless reset's options say otherwise; default: drawn from the
     seed), `reward` ("final" or "progress", see docs/environments.md), `max_steps`, `user` (None: the
     offline user), `grammar` (put the state's action grammar in every step's info)."""
 
     metadata = {"render_modes": ["ansi"], "render_fps": 4}
 
-    def __init__(self, spec="spec", task: str | None = None, persona: str | None = None, reward: str = "final",
+    def __init__(self, spec=None, task: str | None = None, persona: str | None = None, reward: str = "final",
                  max_steps: int = MAX_STEPS, user=None, grammar: bool = False, render_mode: str | None = None):
         from ..compiler import load_domain
 
-        self.domain = load_domain(spec) if isinstance(spec, str) or hasattr(spec, "__fspath__") else spec
+        self.domain = load_domain(spec) if spec is None or isinstance(spec, str) or hasattr(spec, "__fspath__") else spec
         self.task, self.persona, self.reward_mode = task, persona, reward
         self.max_steps, self.user, self.want_grammar = max_steps, user, grammar
         self.render_mode = render_mode

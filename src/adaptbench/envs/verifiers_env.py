@@ -54,7 +54,7 @@ if vf is not None:
         """Which episodes: the spec directory, persona and task ids (empty: all), scene seeds, step limit."""
 
         id: str = TASKSET_ID
-        spec: str = "spec"
+        spec: str = ""  # empty: the paper's spec shipped with adaptbench
         personas: list[str] = []
         tasks: list[str] = []
         seeds: list[int] = [0]
@@ -81,7 +81,7 @@ if vf is not None:
             from ..compiler import load_domain
 
             c = self.config
-            domain = load_domain(c.spec)
+            domain = load_domain(c.spec or None)
             for persona, task, seed in episodes(domain, c.personas, c.tasks, c.seeds):
                 s = Session.open(domain, task, persona, seed, max_steps=c.max_steps)
                 yield AdaptTask(AdaptData(name=f"{persona}/{task}/{seed}", prompt=s.opening(),
@@ -97,7 +97,7 @@ if vf is not None:
             from ..compiler import load_domain
 
             info = task.data.info
-            session = Session.open(load_domain(info["spec"]), info["task"], info["persona"], info["seed"],
+            session = Session.open(load_domain(info["spec"] or None), info["task"], info["persona"], info["seed"],
                                    max_steps=info["max_steps"])
             async with agents.assistant.interaction(task) as interaction:
                 outcome = await play_episode(session, interaction.turn, interaction.turn)
@@ -110,7 +110,7 @@ if vf is not None:
                "play_episode"]
 
 
-def load_environment(spec: str = "spec", personas=(), tasks=(), seeds=(0,), max_steps: int = MAX_STEPS):
+def load_environment(spec: str = "", personas=(), tasks=(), seeds=(0,), max_steps: int = MAX_STEPS):
     """The verifiers Env over ADAPT episodes (ImportError naming the package when verifiers is absent)."""
     if vf is None:
         raise ImportError("the verifiers library is not installed: pip install 'verifiers>=0.4'")
