@@ -68,13 +68,15 @@ def build_parser() -> argparse.ArgumentParser:
         "evaluate preference satisfaction.", epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     _add_validate(sub)
-    from . import author, episode, grammar, runs, view
+    from . import author, episode, grammar, runs, serve_env, train_grpo, view
 
     author.add_commands(sub)
     episode.add_commands(sub)
     runs.add_commands(sub)
     grammar.add_commands(sub)
     view.add_commands(sub)
+    serve_env.add_commands(sub)
+    train_grpo.add_commands(sub)  # after any module that registers the `train` group
     return parser
 
 
