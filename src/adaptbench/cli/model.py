@@ -122,12 +122,12 @@ def users_check_llm(args) -> int:
     if bad:
         _fail(f"unknown persona {', '.join(bad)} (choose from: {', '.join(domain.persona)}, or all)")
     probes, s = audit(domain, _backend(args, args.user_model), personas, args.max_probes)
-    if args.verbose:
-        for p in probes:
-            if not p.hit:
-                print(f"MISS {p.persona}.{p.preference}: {p.question!r} -> {p.answer!r}")
-    print(f"LLM user: {s['hits']}/{s['probes']} probes answered naming the preference ({s['hit_rate']:.1%}); "
-          f"consistent answers: {'yes' if s['consistent'] else 'NO'}; location leaks: {s['location_leaks']}")
+    for p in probes:
+        if args.verbose:
+            print(f"{p.verdict.upper():<10} {p.persona}.{p.preference}: {p.question!r} -> {p.answer!r}")
+    print(f"LLM user: {s['hits']}/{s['probes']} probes answered with the preference ({s['hit_rate']:.1%}; "
+          f"echoes {s['echo']}, non-answers {s['non-answer']}, other misses {s['miss']}); consistent answers: "
+          f"{'yes' if s['consistent'] else 'NO'}; location leaks: {s['location_leaks']}")
     return 0 if s["hit_rate"] >= args.min_rate and s["location_leaks"] == 0 else 1
 
 
