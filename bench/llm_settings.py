@@ -39,7 +39,8 @@ def _steps_per_second(domain, model: str, episodes: int, steps: int, threads: in
 
 
 DEFAULT = {"threads": 2, "batch": 16, "sessions": True, "budget": None, "dtype": "float32"}
-VARY = (("threads", 1), ("batch", 4), ("batch", 1), ("budget", 1024), ("dtype", "bfloat16"), ("sessions", False))
+VARY = (("threads", 1), ("batch", 4), ("batch", 1), ("budget", 1024), ("dtype", "bfloat16"), ("sessions", False),
+        ("dtype+batch", ("bfloat16", 4)))  # the last: the default chosen for models of this size (llm/cpu.py)
 
 
 def run(domain, model: str, quick: bool = False) -> list:
@@ -51,7 +52,8 @@ def run(domain, model: str, quick: bool = False) -> list:
     rows = []
     base = None
     for key, value in ((None, None), *VARY):
-        s = dict(DEFAULT) if key is None else {**DEFAULT, key: value}
+        s = dict(DEFAULT) if key is None else {**DEFAULT, key: value} if "+" not in key else \
+            {**DEFAULT, **dict(zip(key.split("+"), value, strict=True))}
         n_ep = max(1, episodes // 4) if key == "sessions" else episodes
         if key == "sessions":  # the same smaller set with the cache, for the ratio
             ref = _steps_per_second(domain, model, n_ep, steps, **{**DEFAULT, "batch": min(DEFAULT["batch"], n_ep)})

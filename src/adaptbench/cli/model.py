@@ -20,8 +20,10 @@ def add_rollout_options(p) -> None:
                    help="what serves --url (--backend openai): vllm (token-id prompts, grammars enforced) or "
                    "transformers-serve (text prompts, grammars checked and retried locally); default vllm")
     g.add_argument("--device", default="cpu", help="cpu, cuda, cuda:1 ... (default cpu)")
-    g.add_argument("--dtype", default="auto", choices=["auto", "float32", "bfloat16", "float16"])
-    g.add_argument("--batch", type=int, default=16, help="episodes advanced together (default 16)")
+    g.add_argument("--dtype", choices=["auto", "float32", "bfloat16", "float16"],
+                   help="default: the checkpoint's (auto); on a CPU, bfloat16 for a real-sized model where the CPU "
+                   "has bfloat16 instructions (llm/cpu.py, measured in docs/smollm2.md)")
+    g.add_argument("--batch", type=int, help="episodes advanced together (default 16)")
     g.add_argument("--max-steps", type=int, help="step budget per episode (default 50; always-ask 50 x (1 + 1/N))")
     g.add_argument("--budget", type=int, help="prompt token budget (oldest steps dropped first; default: the "
                    "model's context less the generation limits)")
@@ -49,11 +51,23 @@ def _backend(args, model: str):
             plain = getattr(args, "server", "vllm") == "transformers-serve"
             return make_backend("openai", url=args.url, model=model, tokenizer=args.tokenizer or model,
                                 text_prompts=plain, grammar_field=not plain)
-        return make_backend("transformers", model=model, device=args.device, dtype=args.dtype)
+        return make_backend("transformers", model=model, device=args.device, **_cpu_settings(args, model))
     except ImportError as exc:
         _fail(f"{exc}; install the models extra: pip install torch==2.13.0 && pip install -e '.[models]'")
     except (FileNotFoundError, OSError, ValueError) as exc:
         _fail(str(exc))
+
+
+def _cpu_settings(args, model: str) -> dict:
+    """dtype, torch threads and batch size of the transformers backend: what the command line gives, else
+    the size-based defaults of `llm.cpu` on a CPU (the checkpoint's dtype and 16 rows elsewhere)."""
+    from ..llm.cpu import cpu_defaults
+
+    dtype, batch = getattr(args, "dtype", None), getattr(args, "batch", None)
+    if args.device != "cpu":
+        return {"dtype": dtype or "auto", "batch_size": batch or 16}
+    s = cpu_defaults(model)
+    return {"dtype": dtype or s.dtype, "threads": s.threads, "batch_size": batch or s.batch}
 
 
 def run_rollout(args, jobs: list, domain) -> int:
@@ -67,6 +81,10 @@ def run_rollout(args, jobs: list, domain) -> int:
     if not args.model:
         _fail("--model is required for language-model agents (a directory; `adapt model init --out DIR` "
               "builds a tiny one)")
+    if args.batch is None:
+        from ..llm.cpu import cpu_defaults
+
+        args.batch = cpu_defaults(args.model).batch if args.device == "cpu" and args.backend == "transformers" else 16
     if args.batch < 1:
         _fail(f"--batch must be at least 1 (got {args.batch})")
     if args.workers > 1 and args.backend == "transformers" and args.device != "cpu":
@@ -105,7 +123,8 @@ def add_users_check_options(q) -> None:
     q.add_argument("--personas", default="all", help="--llm: 'all' or comma-separated ids")
     q.add_argument("--max-probes", type=int, help="--llm: probes per preference (default all)")
     q.add_argument("--device", default="cpu")
-    q.add_argument("--dtype", default="auto", choices=["auto", "float32", "bfloat16", "float16"])
+    q.add_argument("--dtype", choices=["auto", "float32", "bfloat16", "float16"],
+                   help="default: auto, or bfloat16 for a real-sized model on a CPU with bfloat16 instructions")
     q.set_defaults(backend="transformers")
 
 
