@@ -26,12 +26,12 @@ from bench.common import SPEC, report  # noqa: E402
 
 def _requests(domain, backend, n: int, grammar: bool):
     from adaptbench.grammars import GrammarCache
+    from adaptbench.harness.batches import episode_id
     from adaptbench.harness.episode import Episode
     from adaptbench.harness.rollout import Job
     from adaptbench.llm.backend import Request
     from adaptbench.llm.chat import render
     from adaptbench.llm.prompts import PromptBuilder
-    from adaptbench.llm.rollout import episode_id
     from adaptbench.runtime.env import Env
     from adaptbench.runtime.index import runtime_index
 
@@ -69,9 +69,9 @@ def decode_speed(domain, backend, n: int, rounds: int = 3) -> tuple:
 def _rollout(domain, backend, n: int, steps: int, batch: int) -> tuple:
     """(episodes per minute, records) of n planner episodes of `steps` steps, `batch` at a time."""
     from adaptbench.agents.users import OfflineUser
+    from adaptbench.harness.batches import run_batched
     from adaptbench.harness.rollout import Job
     from adaptbench.llm.policies import LLMPolicy
-    from adaptbench.llm.rollout import run_batched
 
     jobs = [Job("planner", "juan", list(domain.task)[i % 8], i) for i in range(n)]
     policy = LLMPolicy(backend, domain, "planner", max_tokens=24)
@@ -120,7 +120,7 @@ class _InStep:
 def _ask_rollout(domain, backend, jobs, width: int, steps: int, batch_users: bool = True) -> tuple:
     """One rollout of the scripted always-ask agent with LLM users: (answers, seconds, replies by episode)."""
     from adaptbench.agents.scripted import make_policy
-    from adaptbench.llm.rollout import run_batched
+    from adaptbench.harness.batches import run_batched
     from adaptbench.llm.user import LLMUser
 
     users = []

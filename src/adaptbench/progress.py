@@ -1,44 +1,41 @@
-"""A dependency-free progress bar for long work (rollouts, training)."""
+"""Progress bars for long work (rollouts, solvability checks), drawn by tqdm.
+
+On a terminal the bar redraws in place; when stderr is not a terminal (CI logs, `2> log`) each update
+becomes one plain line, at most one per tenth of the work and per ten seconds, plus the last one.
+"""
 
 from __future__ import annotations
 
 import sys
-import time
+
+NON_TTY_SECONDS = 10.0
 
 
-class Progress:
-    """`with Progress(total, "rollouts") as bar: bar.update()` — draws on stderr when it is a terminal,
-    else prints a line every 10%."""
+class _Lines:
+    """The stream tqdm writes to when stderr is not a terminal: each redraw as one plain line."""
 
-    def __init__(self, total: int, label: str, stream=None):
-        self.total, self.label, self.done = max(total, 0), label, 0
-        self.stream = stream or sys.stderr
-        self.start = time.perf_counter()
-        self.tty = hasattr(self.stream, "isatty") and self.stream.isatty()
-        self._last_decile = -1
+    def __init__(self, stream):
+        self.stream = stream
 
-    def __enter__(self):
-        self._draw()
-        return self
-
-    def __exit__(self, *exc):
-        self._draw(final=True)
-
-    def update(self, n: int = 1, note: str = "") -> None:
-        """Advance by n."""
-        self.done += n
-        self._draw(note=note)
-
-    def _draw(self, final: bool = False, note: str = "") -> None:
-        elapsed = time.perf_counter() - self.start
-        frac = self.done / self.total if self.total else 1.0
-        rate = self.done / elapsed if elapsed > 0 else 0.0
-        eta = (self.total - self.done) / rate if rate > 0 else 0.0
-        bar = "#" * int(frac * 30)
-        line = f"{self.label}: [{bar:<30}] {self.done}/{self.total} {rate:.1f}/s eta {eta:.0f}s {note}"
-        if self.tty:
-            self.stream.write("\r" + line[:120].ljust(120) + ("\n" if final else ""))
-        elif final or int(frac * 10) > self._last_decile:
-            self._last_decile = int(frac * 10)
+    def write(self, text: str) -> None:
+        """Write a redraw (carriage returns and padding dropped) as a line."""
+        line = text.replace("\r", "").replace("\x1b[A", "").rstrip()
+        if line:
             self.stream.write(line + "\n")
+
+    def flush(self) -> None:
+        """Flush the underlying stream."""
         self.stream.flush()
+
+
+def progress_bar(total: int, label: str, enabled: bool = True, stream=None):
+    """A tqdm bar over `total` items on stderr (`bar.update()`, `bar.set_postfix_str(note)`, `bar.close()`;
+    also a context manager); disabled: it draws nothing."""
+    from tqdm import tqdm
+
+    stream = stream or sys.stderr
+    tty = hasattr(stream, "isatty") and stream.isatty()
+    if tty:
+        return tqdm(total=total, desc=label, file=stream, unit="ep", dynamic_ncols=True, disable=not enabled)
+    return tqdm(total=total, desc=label, file=_Lines(stream), unit="ep", ncols=100, disable=not enabled,
+                mininterval=NON_TTY_SECONDS, miniters=max(1, total // 10), ascii=True)

@@ -79,12 +79,12 @@ def test_a_component_without_recipe_is_said_not_skipped_silently(domain, capsys)
     import dataclasses
 
     from adaptbench.agents.plans import notes
-    from adaptbench.harness.rollout import _notes
+    from adaptbench.agents.scripted import NeverAsk
 
     d = dataclasses.replace(domain, recipes=tuple(r for r in domain.recipes if r.id != "toast"))
     task = d.task["toast_coffee"]
     assert notes(d, task) == ["no recipe for component toast: the scripted agents skip it"]
-    assert _notes(d, task) == notes(d, task) and notes(domain, task) == []
+    assert list(NeverAsk(d).notes(task.id)) == notes(d, task) and notes(domain, task) == []
     persona = _zed(d)
     env = Env(d, task="toast_coffee", persona=persona, seed=0, user=OfflineUser(d, persona, task))
     env.reset()

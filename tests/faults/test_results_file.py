@@ -41,6 +41,21 @@ def test_repair_of_a_file_with_no_newline_at_all(tmp_path):
     assert path.read_bytes() == b""
 
 
+def test_a_run_that_writes_nothing_leaves_no_file_it_created(tmp_path):
+    new = tmp_path / "new.jsonl"
+    with ResultsFile.open(new):
+        assert new.exists()  # created and locked while the run lasts
+    assert not new.exists()
+    with ResultsFile.open(new) as store:
+        store.append({"agent": "a", "persona": "p", "task": "t", "seed": 0})
+    assert new.exists()
+    old = tmp_path / "old.jsonl"
+    old.write_text("")
+    with ResultsFile.open(old):
+        pass
+    assert old.exists()  # the user's file, even if empty, is never removed
+
+
 def test_a_second_writer_is_refused(tmp_path):
     path = tmp_path / "r.jsonl"
     with ResultsFile.open(path, "h"), pytest.raises(ResultsError, match="another run"):

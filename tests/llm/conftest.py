@@ -18,10 +18,10 @@ STEPS = ("Look for eggs", 'Ask "How do you like your eggs?"', "Open fridge_0", "
 def play(domain, task="eggs", persona="juan", seed=0, steps=STEPS, agent="planner"):
     """An episode in flight after the given actions (offline user)."""
     from adaptbench.agents.users import OfflineUser
+    from adaptbench.harness.batches import episode_id
     from adaptbench.harness.episode import Episode
     from adaptbench.harness.policy import Decision
     from adaptbench.harness.rollout import Job
-    from adaptbench.llm.rollout import episode_id
     from adaptbench.runtime.env import Env
 
     env = Env(domain, task, persona, seed, user=OfflineUser(domain, domain.persona[persona], domain.task[task]))

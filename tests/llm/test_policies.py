@@ -22,8 +22,8 @@ def _offline(d, p, t):
 
 @pytest.mark.parametrize("agent", list(AGENTS))
 def test_each_agent_runs_batched_and_every_action_parses(domain, backend, agent):
+    from adaptbench.harness.batches import run_batched
     from adaptbench.llm.policies import LLMPolicy
-    from adaptbench.llm.rollout import run_batched
 
     policy = LLMPolicy(backend, domain, agent, max_tokens=16, every=2)
     jobs = [Job(agent, "juan", "eggs", 0), Job(agent, "miranda", "cereal", 1)]
@@ -109,8 +109,8 @@ def test_cli_errors_are_clear(tmp_path, capsys):
 
 
 def test_an_episode_that_raises_becomes_an_error_record(domain, cereal_steps_raise):
+    from adaptbench.harness.batches import run_batched
     from adaptbench.harness.policy import Decision, Policy
-    from adaptbench.llm.rollout import run_batched
 
     class LookForEggs(Policy):
         name = "look"
@@ -125,9 +125,9 @@ def test_an_episode_that_raises_becomes_an_error_record(domain, cereal_steps_rai
 
 
 def test_llm_rollout_runs_on_the_harness_loop_one_batched_call_per_round(domain, backend, tmp_path):
+    from adaptbench.harness.batches import rollout_policy
     from adaptbench.harness.record import RECORD_VERSION, EpisodeRecord
     from adaptbench.llm.policies import LLMPolicy
-    from adaptbench.llm.rollout import rollout_llm
 
     class Counted(LLMPolicy):
         rows: list = []
@@ -140,22 +140,22 @@ def test_llm_rollout_runs_on_the_harness_loop_one_batched_call_per_round(domain,
     jobs = [Job("planner", p, t, 0) for p in ("juan", "miranda") for t in ("eggs", "cereal")] + \
         [Job("planner", "juan", "eggs", 1)]
     out = tmp_path / "p.jsonl"
-    res = rollout_llm(jobs, out, domain, policy, _offline, batch=2, progress=False, steps=2)
+    res = rollout_policy(jobs, out, domain, policy, _offline, batch=2, progress=False, steps=2)
     assert res.ran == 5 and res.errors == 0
     assert max(policy.rows) == 2 and sum(policy.rows) == 5 * 2  # slots refilled: 2 rows a round until the last
     recs = [EpisodeRecord.from_json(line) for line in out.read_text().splitlines()]
     assert all(r.version == RECORD_VERSION and r.n_steps == 2 for r in recs)
     assert all(r.config == {**policy.config(), "user": "offline", "max_steps": 2} for r in recs)
     assert all(s.completion == s.action and s.stats["batch"] in (1, 2) for r in recs for s in r.steps)
-    assert rollout_llm(jobs, out, domain, policy, _offline, batch=2, progress=False, steps=2).present == 5
+    assert rollout_policy(jobs, out, domain, policy, _offline, batch=2, progress=False, steps=2).present == 5
 
 
 def test_worker_processes_split_the_jobs_and_write_what_one_process_writes(domain, tiny, tmp_path):
     import json
 
+    from adaptbench.harness.batches import rollout_policy
     from adaptbench.llm.hf import TransformersBackend
     from adaptbench.llm.policies import LLMPolicy
-    from adaptbench.llm.rollout import rollout_llm
 
     jobs = [Job("planner", p, t, s) for p in ("juan", "miranda") for t in ("eggs", "cereal") for s in (0, 1)]
 
@@ -163,7 +163,7 @@ def test_worker_processes_split_the_jobs_and_write_what_one_process_writes(domai
         out = tmp_path / f"w{workers}.jsonl"
         policy = LLMPolicy(TransformersBackend(str(tiny)), domain, "planner", max_tokens=12)
         policy.act_batch([play(domain)[0].view()] * 4)  # the parent's mask threads exist before the fork
-        res = rollout_llm(jobs, out, domain, policy, _offline, batch=2, progress=False, steps=3, workers=workers)
+        res = rollout_policy(jobs, out, domain, policy, _offline, batch=2, progress=False, steps=3, workers=workers)
         assert res.ran == len(jobs) and res.errors == 0
         recs = [json.loads(line) for line in out.read_text().splitlines()]
         return {(r["persona"], r["task"], r["seed"]): [s["action"] for s in r["steps"]] for r in recs}

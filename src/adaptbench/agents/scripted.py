@@ -21,8 +21,8 @@ from ..compiler.lint import applies_to
 from ..compiler.model import Choice, CompiledDomain, Persona, Task
 from ..harness.policy import Decision, Policy, View
 from ..runtime.env import Env
+from ..runtime.users import words
 from .plans import PLAN, Executor, all_recipes, choice_points, defaults, execute, feedback, task_recipes
-from .users import words
 
 AGENTS = ("oracle", "never-ask", "always-ask")
 
@@ -54,6 +54,12 @@ class ScriptedPolicy(Policy):
     def end(self, episode: str) -> None:
         """Forget a finished episode's plan."""
         self._runs.pop(episode, None)
+
+    def notes(self, task: str) -> tuple:
+        """What the scripted agents cannot do on `task` (`no recipe for component X`), kept in each record."""
+        from .plans import notes
+
+        return tuple(notes(self.domain, self.domain.task[task]))
 
 
 # ------------------------------------------------------------------ never-ask

@@ -26,15 +26,23 @@ def _cmd_test(args) -> int:
 
 def _cmd_new(args) -> int:
     from ..authoring import add_to_splits, skeleton_path, skeleton_text
+    from ..compiler import SpecError
+    from ..paper import is_packaged
 
     try:
         path, text = skeleton_path(args.spec, args.kind, args.id), skeleton_text(args.spec, args.kind, args.id)
+    except SpecError:
+        raise  # a ValueError too: the one handler reports its diagnostics
     except ValueError as exc:
         print(f"adapt: {exc}", file=sys.stderr)
         return 2
     if args.stdout:
         sys.stdout.write(text)
         return 0
+    if is_packaged(path):
+        print(f"adapt: {args.spec} is the spec installed with adaptbench (read-only); copy it with "
+              "`adapt spec export DIR` and pass --spec DIR", file=sys.stderr)
+        return 2
     if path.exists():
         print(f"adapt: {path} already exists (choose another id, or --stdout to print the skeleton)", file=sys.stderr)
         return 1
@@ -81,14 +89,28 @@ def _cmd_schema(args) -> int:
     return 0
 
 
+def _cmd_spec_export(args) -> int:
+    from ..paper import export_spec, shipped_spec
+
+    try:
+        files = export_spec(args.dir)
+    except FileExistsError as exc:
+        print(f"adapt: {exc} (choose a new directory)", file=sys.stderr)
+        return 2
+    print(f"copied the paper's spec ({len(files)} files) from {shipped_spec()} to {args.dir}; "
+          f"check it with: adapt validate {args.dir}")
+    return 0
+
+
 def add_commands(sub) -> None:
     """Register test, new, vocab and schema."""
+    from ..paper import default_spec
     p = sub.add_parser("test", help="a spec's CI check: validate, lint, fixtures, solvability; exit 0/1",
                        description="Validate SPEC_DIR (with the linter), run every trajectory fixture under "
                                    "SPEC_DIR/fixtures (or --fixtures; format in docs/fixtures.md) and check that "
                                    "the oracle satisfies every applicable preference on a few seeds. Prints a "
                                    "short report; exit 0 when every check passes, 1 otherwise.")
-    p.add_argument("spec_dir", nargs="?", default="spec", help="spec directory (default: spec)")
+    p.add_argument("spec_dir", nargs="?", default=default_spec(), help="spec directory (default: the paper's spec shipped with adaptbench; $ADAPT_SPEC overrides)")
     p.add_argument("--fixtures", help="fixture file or directory (default: SPEC_DIR/fixtures)")
     p.add_argument("--seeds", default="0-1", help="scene seeds for the solvability check (default 0-1)")
     p.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1),
@@ -111,6 +133,16 @@ def add_commands(sub) -> None:
     p.add_argument("--stdout", action="store_true", help="print the skeleton instead of writing it")
     p.set_defaults(func=_cmd_new)
 
+    p = sub.add_parser("spec", help="the paper's spec shipped with adaptbench: `adapt spec export DIR` copies it",
+                       description="The paper's spec is installed with the package (the default of --spec; "
+                                   "$ADAPT_SPEC overrides). `export` copies it to DIR as the start of a new domain.")
+    ssub = p.add_subparsers(dest="spec_command", metavar="SUBCOMMAND", required=True)
+    q = ssub.add_parser("export", help="copy the paper's spec to DIR (new or empty) to edit it",
+                        description="Copy the paper's spec to DIR (which must be new or empty); edit it and pass "
+                                    "--spec DIR (or set ADAPT_SPEC=DIR).")
+    q.add_argument("dir", help="directory to create")
+    q.set_defaults(func=_cmd_spec_export)
+
     p = sub.add_parser("vocab", help="list the names rules may use and what each matches",
                        description="The tags, categories, components (and groups) and styles of the spec, "
                                    "with what each matches in the catalogue.")
@@ -126,5 +158,6 @@ def add_commands(sub) -> None:
                                    "components) so an editor completes them. Keep the output out of git "
                                    "(e.g. --out .schemas/ and `.schemas/` in .gitignore).")
     p.add_argument("--out", required=True, help="directory to write *.schema.json into, e.g. .schemas/")
-    p.add_argument("--spec", default="spec", help="spec whose names to list (default: spec; skipped if absent)")
+    p.add_argument("--spec", default=default_spec(), help="spec whose names to list (default: the paper's spec; "
+                   "$ADAPT_SPEC overrides; skipped if absent)")
     p.set_defaults(func=_cmd_schema)

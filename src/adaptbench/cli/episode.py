@@ -115,7 +115,9 @@ def _cmd_play(args) -> int:
 
 def add_spec_option(p) -> None:
     """The `--spec DIR` option every command that loads the domain takes."""
-    p.add_argument("--spec", default="spec", help="spec directory (default: spec)")
+    from ..paper import default_spec
+
+    p.add_argument("--spec", default=default_spec(), help="spec directory (default: the paper's spec shipped with adaptbench; $ADAPT_SPEC overrides)")
 
 
 def _common(p) -> None:

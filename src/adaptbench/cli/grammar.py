@@ -76,11 +76,14 @@ def add_commands(sub) -> None:
                        description="The action grammars generated from spec/: `build` writes grammars/, "
                                    "`check` fails when they drift from spec/, `show` prints a state's grammar.")
     gsub = g.add_subparsers(dest="grammar_command", metavar="SUBCOMMAND", required=True)
+    from ..paper import default_grammars
+
     for name, func, text in (("build", _cmd_build, "regenerate the committed grammars"),
                              ("check", _cmd_check, "exit 1 when the committed grammars differ from spec/")):
         p = gsub.add_parser(name, help=text, description=text)
         add_spec_option(p)
-        p.add_argument("--out", default="grammars", help="grammar directory (default: grammars)")
+        p.add_argument("--out", default=default_grammars(),
+                       help="grammar directory (default: the paper's grammars/, in a checkout the repository's)")
         p.set_defaults(func=func)
     p = gsub.add_parser("show", help="print the grammar of the state reached after some actions",
                         description="Replay ACTIONS_FILE (if given) in a scene of TASK and print the grammar "

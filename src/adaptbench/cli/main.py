@@ -19,6 +19,7 @@ examples:
   adapt scene --seed 3 --json               the sampled scene for seed 3
   adapt play --task eggs --persona juan     play an episode in the terminal
   adapt replay --task eggs --persona juan --full-scene actions.txt --json
+  adapt view runs/demo.jsonl --out report.html   the episodes as one HTML page
 """
 
 
@@ -50,7 +51,10 @@ def _add_validate(sub) -> None:
     p = sub.add_parser("validate", help="check spec files and report every problem with file:line:col",
                        description="Compile the spec directories and report every problem at once. "
                                    "Exit 0 when clean, 1 on errors, 2 on usage errors.")
-    p.add_argument("spec_dirs", nargs="*", default=["spec"], help="spec directories (default: spec)")
+    from ..paper import default_spec
+
+    p.add_argument("spec_dirs", nargs="*", default=[default_spec()],
+                   help="spec directories (default: the paper's spec shipped with adaptbench; $ADAPT_SPEC overrides)")
     p.add_argument("--format", choices=["text", "json"], default="text", help="output format")
     p.add_argument("--matrix", action="store_true",
                    help="also print how many preferences of each persona apply to each task")
@@ -64,12 +68,15 @@ def build_parser() -> argparse.ArgumentParser:
         "evaluate preference satisfaction.", epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     _add_validate(sub)
-    from . import author, episode, grammar, runs
+    from . import author, episode, grammar, runs, serve_env, train_grpo, view
 
     author.add_commands(sub)
     episode.add_commands(sub)
     runs.add_commands(sub)
     grammar.add_commands(sub)
+    view.add_commands(sub)
+    serve_env.add_commands(sub)
+    train_grpo.add_commands(sub)  # after any module that registers the `train` group
     return parser
 
 
@@ -104,13 +111,17 @@ def main(argv=None) -> int:
 
 
 def _report(exc: Exception, spec=None) -> int:
-    """Print a spec error's diagnostics or a file problem as a message; anything else is a bug and keeps
-    its traceback."""
+    """Print an `AdaptError` (a spec error's diagnostics, or its one-line message) or a file problem as a
+    message, with its exit code; anything else is a bug and keeps its traceback."""
     from ..compiler import SpecError
+    from ..errors import AdaptError
 
     if isinstance(exc, SpecError):
         report_spec_error(exc, spec)
-        return 1
+        return exc.exit_code
+    if isinstance(exc, AdaptError):
+        print(f"adapt: {exc}", file=sys.stderr)
+        return exc.exit_code
     if isinstance(exc, OSError) and exc.filename:
         print(f"adapt: {exc.filename}: {exc.strerror or exc}", file=sys.stderr)
         return 1

@@ -6,8 +6,6 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from ..llm.policies import AGENTS
-
 
 def add_rollout_options(p) -> None:
     """The model options of `adapt rollout` (used by the LLM agents only)."""
@@ -31,11 +29,6 @@ def add_rollout_options(p) -> None:
     g.add_argument("--user-model", help="model directory of the LLM user (default: --model)")
 
 
-def is_llm(agents) -> bool:
-    """Whether any of the agent names is a language-model agent."""
-    return any(a in AGENTS for a in agents)
-
-
 def _fail(msg: str, code: int = 2):
     print(f"adapt: {msg}", file=sys.stderr)
     raise SystemExit(code)
@@ -46,16 +39,20 @@ def _backend(args, model: str):
         from ..llm.backend import make_backend
     except ImportError as exc:  # pragma: no cover - the models extra is missing
         _fail(f"{exc}; install the models extra: pip install torch==2.13.0 && pip install -e '.[models]'")
+    from ..llm.backend import ModelError
+
     try:
         if args.backend == "openai":
             plain = getattr(args, "server", "vllm") == "transformers-serve"
-            return make_backend("openai", url=args.url, model=model, tokenizer=args.tokenizer or model,
-                                text_prompts=plain, grammar_field=not plain)
+            backend = make_backend("openai", url=args.url, model=model, tokenizer=args.tokenizer or model,
+                                   text_prompts=plain, grammar_field=not plain)
+            backend.probe()
+            return backend
         return make_backend("transformers", model=model, device=args.device, **_cpu_settings(args, model))
     except ImportError as exc:
         _fail(f"{exc}; install the models extra: pip install torch==2.13.0 && pip install -e '.[models]'")
-    except (FileNotFoundError, OSError, ValueError) as exc:
-        _fail(str(exc))
+    except (ModelError, FileNotFoundError, OSError, ValueError) as exc:
+        _fail(str(exc).splitlines()[0] if str(exc) else type(exc).__name__)
 
 
 def _cpu_settings(args, model: str) -> dict:
@@ -70,26 +67,37 @@ def _cpu_settings(args, model: str) -> dict:
     return {"dtype": dtype or s.dtype, "threads": s.threads, "batch_size": batch or s.batch}
 
 
-def run_rollout(args, jobs: list, domain) -> int:
-    """`adapt rollout` for LLM agents: one policy per agent, episodes batched."""
-    from ..agents.users import OfflineUser
-    from ..harness.results import ResultsError
-    from ..llm.policies import LLMPolicy
-    from ..llm.rollout import rollout_llm
-    from ..llm.user import LLMUser
-
-    if not args.model:
-        _fail("--model is required for language-model agents (a directory; `adapt model init --out DIR` "
-              "builds a tiny one)")
+def _default_batch(args) -> None:
+    """--batch when not given: the size-based CPU default (`llm.cpu`), else 16."""
     if args.batch is None:
         from ..llm.cpu import cpu_defaults
 
         args.batch = cpu_defaults(args.model).batch if args.device == "cpu" and args.backend == "transformers" else 16
+
+
+def rollout_options(args, agents: list) -> dict:
+    """The options of `harness.rollout.rollout` for these agents: with any language-model agent, the
+    backend (built here from --model) and the user, batch width, step budget and prompt budget; for
+    scripted agents alone, none (one episode at a time per worker, the offline user)."""
+    from ..harness.registry import spec
+
+    if not any(spec(a).resolved_kind() == "model" for a in agents):
+        return {}
+    from ..llm.user import LLMUser
+    from ..runtime.users import OfflineUser
+
+    if not args.model:
+        _fail("--model is required for language-model agents (a directory; `adapt model init --out DIR` "
+              "builds a tiny one)")
+    _default_batch(args)
     if args.batch < 1:
         _fail(f"--batch must be at least 1 (got {args.batch})")
     if args.workers > 1 and args.backend == "transformers" and args.device != "cpu":
         _fail(f"--workers {args.workers} runs that many copies of the model on the CPU; on --device "
               f"{args.device} use one process and --batch")
+    if any(spec(a).resolved_kind() != "model" for a in agents):
+        scripted = next(a for a in agents if spec(a).resolved_kind() != "model")
+        _fail(f"agent '{scripted}' cannot be mixed with language-model agents in one command")
     backend = _backend(args, args.model)
     user_backend = backend if args.user == "offline" or not args.user_model or args.user_model == args.model \
         else _backend(args, args.user_model)
@@ -98,22 +106,9 @@ def run_rollout(args, jobs: list, domain) -> int:
             return LLMUser(user_backend, d, p, t)
         user_config = {"user": "llm", **{f"user_{k}": v for k, v in user_backend.config().items()}}
     else:
-        def make_user(d, p, t):
-            return OfflineUser(d, p, t)
-        user_config = {"user": "offline"}
-    ran = errors = present = 0
-    for agent in dict.fromkeys(j.agent for j in jobs):
-        if agent not in AGENTS:
-            _fail(f"agent '{agent}' cannot be mixed with language-model agents in one command")
-        policy = LLMPolicy(backend, domain, agent, budget=args.budget)
-        try:
-            res = rollout_llm([j for j in jobs if j.agent == agent], Path(args.out), domain, policy, make_user,
-                              args.batch, not args.quiet, user_config, args.max_steps, args.workers)
-        except ResultsError as exc:
-            _fail(str(exc), exc.code)
-        ran, errors, present = ran + res.ran, errors + res.errors, present + res.present
-    print(f"{ran} episode(s) run, {present} already in {args.out}")
-    return 1 if errors else 0
+        make_user, user_config = OfflineUser, {"user": "offline"}
+    return {"backend": backend, "make_user": make_user, "user_config": user_config, "batch": args.batch,
+            "steps": args.max_steps, "budget": args.budget}
 
 
 def add_users_check_options(q) -> None:
@@ -169,7 +164,7 @@ def _cmd_model_init(args) -> int:
 def _cmd_model_pretrain(args) -> int:
     import glob
 
-    from ..compiler import load_domain
+    from ..compiler import SpecError, load_domain
     from ..llm.pretrain import pretrain
 
     paths = [p for pat in args.data for p in (sorted(glob.glob(pat)) or [pat])]
@@ -184,6 +179,8 @@ def _cmd_model_pretrain(args) -> int:
                         log=(lambda m: None) if args.quiet else (lambda m: print(m, file=sys.stderr)))
     except ImportError as exc:
         _fail(f"{exc}; install the models extra: pip install torch==2.13.0 && pip install -e '.[models]'")
+    except SpecError:
+        raise  # a ValueError too: the one handler reports its diagnostics
     except ValueError as exc:
         _fail(str(exc), 1)
     print(f"trained on {info['examples']} steps of {info['episodes']} episodes for {info['steps']} updates "

@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import argparse
 import sys
 from pathlib import Path
 
+from ..paper import default_spec
 from .episode import add_spec_option
 
 
@@ -31,15 +33,15 @@ def _seeds(text: str) -> list:
 
 
 def _grid(args, domain) -> list:
-    from ..agents.scripted import AGENTS
+    from ..harness.registry import names
     from ..harness.rollout import Job
-    from ..llm.policies import AGENTS as LLM_AGENTS
 
     agents = list(dict.fromkeys(a.strip() for a in args.agent.split(",") if a.strip()))
-    bad = [a for a in agents if a not in AGENTS and a not in LLM_AGENTS]
+    known = names()
+    bad = [a for a in agents if a not in known]
     if bad or not agents:
         print(f"adapt: unknown agent {', '.join(bad) or '(none given)'} "
-              f"(choose from: {', '.join([*AGENTS, *LLM_AGENTS])})",
+              f"(choose from: {', '.join(known)})",
               file=sys.stderr)
         raise SystemExit(2)
     if args.workers < 1:
@@ -52,21 +54,20 @@ def _grid(args, domain) -> list:
 
 
 def _cmd_rollout(args) -> int:
+    """Every agent, scripted or model, on the one rollout path (`harness.rollout.rollout`); for model
+    agents the backend is built here and handed in."""
     from ..compiler import load_domain
     from ..harness.results import ResultsError
-    from ..harness.rollout import RolloutResult, rollout
+    from ..harness.rollout import rollout
     from ..harness.workers import Interrupted, WorkerDied
+    from .model import rollout_options
 
     domain = load_domain(args.spec)
     jobs = _grid(args, domain)
-    from .model import is_llm, run_rollout
-
-    res = RolloutResult()
+    options = rollout_options(args, [j.agent for j in jobs])
     resume = "re-run the same command to resume (finished episodes are kept and skipped)"
     try:
-        if is_llm(j.agent for j in jobs):
-            return run_rollout(args, jobs, domain)
-        res = rollout(jobs, Path(args.out), workers=args.workers, spec=args.spec, progress=not args.quiet)
+        res = rollout(jobs, Path(args.out), workers=args.workers, progress=not args.quiet, domain=domain, **options)
     except Interrupted as exc:
         print(f"\nadapt: stopped by {exc}; every finished episode is in {args.out}; {resume}", file=sys.stderr)
         return 130
@@ -89,13 +90,9 @@ def _summary(res, total: int, out: str) -> None:
 
 
 def _load_runs(args):
-    from ..harness.records import RunsError, load_runs, mixed_specs
+    from ..harness.records import load_runs, mixed_specs
 
-    try:
-        runs = load_runs(args.runs, _splits(args))
-    except RunsError as exc:
-        print(f"adapt: {exc}", file=sys.stderr)
-        raise SystemExit(exc.code) from None
+    runs = load_runs(args.runs, _splits(args))  # a RunsError goes to the one handler: its message, its code
     mixed = mixed_specs(runs)
     if mixed and not args.allow_mixed:
         print(f"adapt: {mixed}", file=sys.stderr)
@@ -173,13 +170,13 @@ def _agent_rows(args, records: list) -> list:
 
 
 def _plot(path: str, rows: list, records: list) -> None:
-    from ..harness.plots import PlotsUnavailable, draw
+    from ..errors import AdaptError
+    from ..harness.plots import draw
 
     try:
         draw(rows, records, Path(path))
-    except PlotsUnavailable as exc:
-        print(f"adapt: {exc}", file=sys.stderr)
-        raise SystemExit(1) from None
+    except AdaptError:
+        raise  # PlotsUnavailable: the one handler prints it
     except (OSError, ValueError) as exc:
         print(f"adapt: cannot write the plot {path} ({getattr(exc, 'strerror', None) or exc})", file=sys.stderr)
         raise SystemExit(1) from None
@@ -228,14 +225,28 @@ def _grid_options(p, seeds_help: str) -> None:
                         "--batch episodes: data parallelism across cores)")
 
 
+class AgentsHelp(argparse.HelpFormatter):
+    """Fills `{agents}` in a help text with the registry's agents (read when the help is shown, so that
+    building the parser imports nothing and reads no entry points)."""
+
+    def _get_help_string(self, action) -> str:
+        text = super()._get_help_string(action) or ""
+        if "{agents}" in text:
+            from ..harness.registry import registry
+
+            listed = "; ".join(f"{s.name} ({s.description})" if s.description else s.name for s in registry().values())
+            text = text.replace("{agents}", listed.replace("%", "%%"))
+        return text
+
+
 def add_commands(sub) -> None:
     """Register rollout and eval."""
     p = sub.add_parser("rollout", help="run agents over personas x tasks x seeds into a JSONL file",
+                       formatter_class=AgentsHelp,
                        description="Run episodes and append one JSON line each to --out as they finish. "
                                    "Re-running the same command resumes: episodes already in the file are skipped.")
     _grid_options(p, "scene seeds, e.g. 0-3 or 0,4,9 (default 0-3)")
-    p.add_argument("--agent", required=True, help="oracle, never-ask, always-ask; language-model agents (with "
-                   "--model): planner, teacher, react, never-ask-llm, always-ask-llm (comma-separated for several)")
+    p.add_argument("--agent", required=True, help="comma-separated for several: {agents}")
     p.add_argument("--out", required=True, help="results file, e.g. runs/oracle.jsonl")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     from . import model as llm_cli
@@ -248,7 +259,7 @@ def add_commands(sub) -> None:
                        description="Preference satisfaction rate and questions asked (mean ± standard error) "
                                    "for seen and unseen personas under the cross-validation splits of spec/splits.yaml.")
     p.add_argument("runs", nargs="+", help="JSONL files written by adapt rollout")
-    p.add_argument("--spec", default="spec", help="spec directory whose splits.yaml defines seen/unseen personas "
+    p.add_argument("--spec", default=default_spec(), help="spec directory whose splits.yaml defines seen/unseen personas "
                                                   "(read only for records with a `split`; default: spec)")
     p.add_argument("--csv", help="also write the table as CSV")
     p.add_argument("--markdown", help="also write the table as Markdown")

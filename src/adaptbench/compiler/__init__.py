@@ -1,6 +1,6 @@
 """The spec compiler: YAML specs -> diagnostics and one immutable `CompiledDomain`.
 
-    domain = load_domain("spec")                     # cached by content hash
+    domain = load_domain()                           # the paper's spec (adaptbench.paper); cached by content hash
     domain, diagnostics = compile_spec(["spec"])     # every problem in one run
 """
 
@@ -140,11 +140,17 @@ def cache_dir() -> Path:
     return Path(base) / "adaptbench"
 
 
-def load_domain(spec_dir="spec", use_cache: bool = True) -> CompiledDomain:
-    """The compiled domain for `spec_dir` (cached on disk by content hash); SpecError on errors.
+def load_domain(spec_dir=None, use_cache: bool = True) -> CompiledDomain:
+    """The compiled domain for `spec_dir` (cached on disk by content hash); SpecError on errors. By
+    default the paper's spec shipped with the package (`adaptbench.paper.default_spec`: $ADAPT_SPEC
+    overrides).
 
     A cache entry that fails to load or whose checksum does not match is discarded and rebuilt,
     with a one-line warning naming the file."""
+    if spec_dir is None:
+        from ..paper import default_spec
+
+        spec_dir = default_spec()
     dirs = [spec_dir] if isinstance(spec_dir, str | Path) else list(spec_dir)
     digest = spec_hash(dirs)
     path = cache_dir() / f"domain-{digest}.json"

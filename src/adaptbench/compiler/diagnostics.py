@@ -7,6 +7,8 @@ import json
 from collections.abc import Iterable
 from dataclasses import asdict, dataclass
 
+from ..errors import AdaptError
+
 
 @dataclass(frozen=True, order=True)
 class Diagnostic:
@@ -24,7 +26,7 @@ class Diagnostic:
         return f"{self.path}:{self.line}:{self.col}: {self.severity}[{self.code}]: {self.message}"
 
 
-class SpecError(Exception):
+class SpecError(AdaptError, ValueError):
     """Raised when a spec does not compile; carries every diagnostic found."""
 
     def __init__(self, diagnostics: list[Diagnostic]):

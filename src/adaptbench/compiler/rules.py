@@ -8,6 +8,7 @@ from importlib import resources
 from lark import Lark, Token, Transformer, v_args
 from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput, UnexpectedToken
 
+from ..errors import AdaptError
 from . import ast as A
 
 
@@ -126,7 +127,7 @@ def _name(tok: Token) -> A.ClsName:
     return A.ClsName(tok.line, tok.column, str(tok))
 
 
-class RuleSyntaxError(Exception):
+class RuleSyntaxError(AdaptError, ValueError):
     """A rule that does not parse: message, and 1-based line/col inside the rule text."""
 
     def __init__(self, message: str, line: int, col: int):

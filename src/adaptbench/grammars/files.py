@@ -6,11 +6,14 @@ observed-level grammar of the task's first state: the layout and its contents). 
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from ..compiler.model import CompiledDomain
 from .emit import Observed
 from .index import GrammarIndex
 from .state import GrammarCache
+
+if TYPE_CHECKING:  # the grammars read a domain's forms; they import nothing of the compiler
+    from ..compiler.model import CompiledDomain
 
 
 def expected_files(domain: CompiledDomain, index: GrammarIndex) -> dict:

@@ -16,8 +16,11 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
-from ..compiler.model import CompiledDomain
+if TYPE_CHECKING:  # the grammars read a domain's forms; they import nothing of the compiler
+    from ..compiler.model import CompiledDomain
+
 
 _STOP = {"a", "an", "the", "some", "of", "and", "or", "with", "for", "in", "on", "to"}
 

@@ -58,7 +58,7 @@ class Episode:
 def targets(env: Env):
     """For a step that asked a question: the ids of the preferences it targets (the offline user's
     matcher: what the offline user answered from, the judge of any other user); None otherwise."""
-    from ..agents.users import question_targets
+    from ..runtime.users import question_targets
 
     event = env.world.trace[-1] if env.world.trace else None
     if event is None or event.action != "ask" or not event.ok:
@@ -108,7 +108,7 @@ def iter_batch(policy: Policy, envs, width: int | None = None, catch: bool = Fal
     running: list = []
     try:
         while True:
-            _refill(policy, source, running, width)
+            _refill(policy, source, running, width, catch)
             over = [ep for ep in running if ep.done or ep.error is not None]
             if over:
                 for ep in over:
@@ -124,7 +124,7 @@ def iter_batch(policy: Policy, envs, width: int | None = None, catch: bool = Fal
             policy.end(ep.id)
 
 
-def _refill(policy: Policy, source, running: list, width: int | None) -> None:
+def _refill(policy: Policy, source, running: list, width: int | None, catch: bool = False) -> None:
     while width is None or len(running) < width:
         item = next(source, None)
         if item is None:
@@ -133,27 +133,68 @@ def _refill(policy: Policy, source, running: list, width: int | None) -> None:
         if any(other.id == ep.id for other in running):
             raise ValueError(f"episode ids in one batch must be distinct ('{ep.id}' is running)")
         running.append(ep)
-        policy.start(ep.id, ep.env)
+        try:
+            policy.start(ep.id, ep.env)
+        except Exception as exc:
+            if not catch:
+                raise
+            ep.error = _error(exc)
 
 
-def _advance(policy: Policy, running: list, catch: bool) -> None:
-    decisions = policy.act_batch([ep.view() for ep in running])
+class Failed:
+    """In place of a decision: the policy raised deciding for this episode (`decide_each`), which ends
+    with `error` = (message, traceback)."""
+
+    def __init__(self, exc: Exception):
+        self.error = _error(exc)
+
+
+def _error(exc: Exception) -> tuple:
+    return (f"{type(exc).__name__}: {exc}", traceback.format_exc())
+
+
+def decide_each(policy: Policy, views) -> list:
+    """`policy.act` for each view, an exception becoming that view's `Failed`: how a policy that does not
+    batch decides under `iter_batch(catch=True)`, so that one episode's bug ends only that episode."""
+    out = []
+    for view in views:
+        try:
+            out.append(policy.act(view))
+        except Exception as exc:  # noqa: BLE001 - recorded as the episode's error
+            out.append(Failed(exc))
+    return out
+
+
+def _decide(policy: Policy, running: list, catch: bool) -> list:
+    views = [ep.view() for ep in running]
+    if catch and type(policy).act_batch is Policy.act_batch:
+        decisions = decide_each(policy, views)
+    else:
+        decisions = policy.act_batch(views)
     if len(decisions) != len(running):
         raise ValueError(f"{type(policy).__name__}.act_batch returned {len(decisions)} decisions "
                          f"for {len(running)} views")
-    decisions = [d if isinstance(d, Decision) else Decision(str(d)) for d in decisions]
+    return [d if isinstance(d, Decision | Failed) else Decision(str(d)) for d in decisions]
+
+
+def _advance(policy: Policy, running: list, catch: bool) -> None:
+    decisions = _decide(policy, running, catch)
+    for ep, d in zip(running, decisions, strict=True):
+        if isinstance(d, Failed):
+            ep.error = d.error
+    steps = [(ep, d) for ep, d in zip(running, decisions, strict=True) if isinstance(d, Decision)]
     try:
-        prepare_answers([(ep.env, d.action) for ep, d in zip(running, decisions, strict=True)])
+        prepare_answers([(ep.env, d.action) for ep, d in steps])
     except Exception:
         if not catch:
             raise  # with `catch`, each user answers in its own step, where an error ends only that episode
-    for ep, decision in zip(running, decisions, strict=True):
+    for ep, decision in steps:
         try:
             ep.apply(decision)
         except Exception as exc:
             if not catch:
                 raise
-            ep.error = (f"{type(exc).__name__}: {exc}", traceback.format_exc())
+            ep.error = _error(exc)
 
 
 def prepare_answers(steps) -> None:

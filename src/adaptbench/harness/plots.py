@@ -9,12 +9,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..errors import AdaptError
 from .evaluate import mean_se
 
 INSTALL = "pip install 'adaptbench[plots]'"
 
 
-class PlotsUnavailable(RuntimeError):
+class PlotsUnavailable(AdaptError, RuntimeError):
     """matplotlib is not installed."""
 
 

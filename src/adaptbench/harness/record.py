@@ -23,11 +23,13 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass, field
 
+from ..errors import AdaptError
+
 RECORD_VERSION = 2
 VERDICTS = ("satisfied", "violated", "inapplicable")
 
 
-class RecordError(ValueError):
+class RecordError(AdaptError, ValueError):
     """A JSON object that is not a usable episode record; the message is the reason (for counting)."""
 
 

@@ -13,16 +13,16 @@ from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from ..errors import AdaptError
 from .record import EpisodeRecord, RecordError
 from .results import episode_key, iter_lines, parse_line
 
 
-class RunsError(Exception):
+class RunsError(AdaptError):
     """Results files that cannot be evaluated (missing, unreadable, mixed specs); the message says why."""
 
     def __init__(self, message: str, code: int = 1):
-        super().__init__(message)
-        self.code = code
+        super().__init__(message, code=code)
 
 
 @dataclass

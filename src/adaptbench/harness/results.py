@@ -9,6 +9,7 @@
   the old or the new length, never an empty file).
 - A second writer on the same file is refused (`fcntl.flock`, held for the whole run).
 - An episode key (agent configuration, spec hash, persona, task, seed) is written at most once.
+- A file the run created is removed again if the run ends before its first record (nothing half-written).
 - A full disk (ENOSPC, EFBIG) truncates the partial line away and raises `DiskFull`: the file stays
   resumable.
 """
@@ -22,6 +23,8 @@ import os
 import time
 from pathlib import Path
 
+from ..errors import AdaptError
+
 try:
     import fcntl
 except ImportError:  # pragma: no cover - Windows: no locking
@@ -31,12 +34,11 @@ FSYNC_SECONDS = 1.0  # at most this much finished work is exposed to a power cut
 FSYNC_RECORDS = 64
 
 
-class ResultsError(Exception):
+class ResultsError(AdaptError):
     """A results file cannot be used (bad path, locked by another run); the message says why."""
 
     def __init__(self, message: str, code: int = 1):
-        super().__init__(message)
-        self.code = code
+        super().__init__(message, code=code)
 
 
 class DiskFull(ResultsError):
@@ -132,8 +134,9 @@ def parse_line(line: bytes):
 class ResultsFile:
     """An exclusively locked, append-only results file (use `ResultsFile.open`)."""
 
-    def __init__(self, path: Path, fd: int, repaired: int):
+    def __init__(self, path: Path, fd: int, repaired: int, created: bool = False):
         self.path, self.fd, self.repaired = path, fd, repaired
+        self.created, self.appended = created, 0  # a file this run created is removed if nothing was appended
         self.done: set = set()
         self.skipped = 0  # lines that are not records
         self._unsynced, self._last_sync = 0, time.monotonic()
@@ -143,10 +146,11 @@ class ResultsFile:
         """Lock `path` (creating it), cut a torn tail, and read the episode keys already there."""
         path = Path(path)
         _check_path(path)
+        created = not path.exists()
         fd = _open_fd(path)
         _lock(fd, path)
         try:
-            store = cls(path, fd, repair_tail(fd))
+            store = cls(path, fd, repair_tail(fd), created)
             store._read(spec_hash)
         except BaseException:
             os.close(fd)
@@ -177,6 +181,7 @@ class ResultsFile:
                                f"every finished episode before it is kept") from None
             raise ResultsError(f"cannot write {self.path} ({exc.strerror})") from None
         self.done.add(key)
+        self.appended += 1
         self._unsynced += 1
         if self._unsynced >= FSYNC_RECORDS or time.monotonic() - self._last_sync >= FSYNC_SECONDS:
             self.sync()
@@ -194,8 +199,12 @@ class ResultsFile:
         self._unsynced, self._last_sync = 0, time.monotonic()
 
     def close(self) -> None:
-        """Sync, unlock and close."""
+        """Sync, unlock and close; a file this run created and wrote nothing to is removed (a run that
+        failed before its first episode leaves no empty results file behind)."""
         if self.fd >= 0:
+            if self.created and not self.appended and os.fstat(self.fd).st_size == 0:
+                with contextlib.suppress(OSError):
+                    self.path.unlink()
             self.sync()
             os.close(self.fd)
             self.fd = -1

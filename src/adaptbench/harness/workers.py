@@ -15,6 +15,8 @@ import signal
 import sys
 from contextlib import contextmanager
 
+from ..errors import AdaptError
+
 POLL_SECONDS = 0.2
 
 
@@ -27,7 +29,7 @@ class Interrupted(BaseException):
         self.signum = signum
 
 
-class WorkerDied(RuntimeError):
+class WorkerDied(AdaptError, RuntimeError):
     """A worker process ended without being asked to."""
 
 
@@ -42,20 +44,6 @@ def _die_with_parent(parent: int) -> None:
             pass
     if os.getppid() != parent:  # the parent died before prctl took effect
         os._exit(1)
-
-
-def _worker(parent: int, spec: str, jobs, results) -> None:
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)
-    _die_with_parent(parent)
-    from .rollout import _init, safe_episode
-
-    _init(spec)
-    while True:
-        job = jobs.get()
-        if job is None or os.getppid() != parent:
-            return
-        results.put(safe_episode(job, spec))
 
 
 @contextmanager
@@ -104,18 +92,6 @@ def run_stream_pool(jobs: list, workers: int, work):
         if _context().get_start_method() != "fork":
             raise ValueError("--workers needs the fork start method (Linux); run with --workers 1")
         yield from _parallel(jobs, min(workers, len(jobs)), _stream_worker, work)
-
-
-def run_pool(jobs: list, spec: str, workers: int):
-    """Yield one record per job (in completion order), on `workers` processes (1: in this process)."""
-    from .rollout import safe_episode
-
-    with stop_signals():
-        if workers <= 1 or len(jobs) <= 1:
-            for job in jobs:
-                yield safe_episode(job, spec)
-            return
-        yield from _parallel(jobs, min(workers, len(jobs)), _worker, spec)
 
 
 def _context():

@@ -13,7 +13,67 @@ from __future__ import annotations
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
 
+from ..errors import AdaptError
+
 BACKENDS = ("transformers", "openai")
+
+
+class ModelError(AdaptError, RuntimeError):
+    """A model or server that cannot be used as given (no CUDA, no tokenizer or chat template, a context
+    too short, no server listening); the message says what to do. The command line prints it as one line
+    and exits 2."""
+
+    exit_code = 2
+
+
+def check_tokenizer(tokenizer, where: str) -> None:
+    """ModelError unless the tokenizer has a chat template (every prompt is rendered with it)."""
+    if not getattr(tokenizer, "chat_template", None):
+        raise ModelError(f"{where} has no chat template (tokenizer_config.json `chat_template` or "
+                         "chat_template.jinja): prompts are rendered with it; use a chat/instruct model "
+                         "or add a template")
+
+
+def load_tokenizer(path: str, **kw):
+    """The tokenizer of a local model directory, with its chat template; ModelError when there is none."""
+    from pathlib import Path
+
+    from transformers import AutoTokenizer
+
+    if not Path(path).is_dir():
+        raise ModelError(f"{path}: not a directory (a model saved with save_pretrained; "
+                         "`adapt model init --out DIR` builds the tiny one)")
+    try:
+        tokenizer = AutoTokenizer.from_pretrained(path, **kw)
+    except (OSError, ValueError, TypeError) as exc:
+        raise ModelError(f"{path}: no usable tokenizer ({str(exc).splitlines()[0][:200]}); the directory needs "
+                         "tokenizer.json or the files of a slow tokenizer, as save_pretrained writes them") from None
+    check_tokenizer(tokenizer, path)
+    return tokenizer
+
+
+def check_device(device: str) -> None:
+    """ModelError when torch cannot use `device` (cuda on a CPU-only build, a GPU index that is not there)."""
+    import torch
+
+    kind, _, index = device.partition(":")
+    if kind == "cuda":
+        if not torch.cuda.is_available():
+            build = "a CPU-only build" if torch.version.cuda is None else "built for CUDA, but no GPU is visible"
+            raise ModelError(f"--device {device}: this torch ({torch.__version__}) is {build}; use --device cpu, "
+                             "or install a CUDA build of torch on a machine with a GPU")
+        if index and (not index.isdigit() or int(index) >= torch.cuda.device_count()):
+            raise ModelError(f"--device {device}: no such GPU ({torch.cuda.device_count()} visible)")
+    elif kind not in ("cpu", "mps", "xpu", "meta"):
+        raise ModelError(f"--device {device}: unknown device (cpu, cuda, cuda:1 ...)")
+
+
+def context_limit(tokenizer, config=None) -> int | None:
+    """The model's context in tokens: the smaller of the model configuration's `max_position_embeddings`
+    and the tokenizer's `model_max_length` (ignored when it is a placeholder); None when neither says."""
+    limits = [getattr(config, "max_position_embeddings", None), getattr(tokenizer, "model_max_length", None)]
+    limits = [x for x in limits if isinstance(x, int) and 0 < x < 1_000_000]
+    return min(limits) if limits else None
 
 
 @dataclass(frozen=True)
@@ -65,6 +125,7 @@ class Backend(ABC):
 
     name = "backend"
     tokenizer = None
+    context = None  # the model's context in tokens, when known
 
     @abstractmethod
     def generate(self, requests) -> list:

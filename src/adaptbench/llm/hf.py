@@ -12,14 +12,13 @@ from pathlib import Path
 import torch
 from transformers import (
     AutoModelForCausalLM,
-    AutoTokenizer,
     LogitsProcessorList,
     StoppingCriteria,
     StoppingCriteriaList,
 )
 
 from . import chat
-from .backend import Backend, Completion, Scored, cut_at_stop
+from .backend import Backend, Completion, Scored, check_device, context_limit, cut_at_stop, load_tokenizer
 from .constrained import GrammarProcessor, Matchers, closing_tokens, ll_tokenizer
 from .decode import Picker, Row, Sessions, decode, loop_supported
 
@@ -77,8 +76,10 @@ class TransformersBackend(Backend):
             torch.set_num_threads(threads)  # small models on shared CPUs: more threads only contend
         self.path, self.device, self.dtype = str(model), device, dtype
         self.batch_size, self.temperature, self.seed = batch_size, temperature, seed
-        self.tokenizer = AutoTokenizer.from_pretrained(model, padding_side="left")
+        check_device(device)
+        self.tokenizer = load_tokenizer(model, padding_side="left")
         self.model = AutoModelForCausalLM.from_pretrained(model, dtype=DTYPES[dtype]).to(device).eval()
+        self.context = context_limit(self.tokenizer, self.model.config)
         self.vocab = self.model.get_output_embeddings().weight.shape[0]
         self.lltok = ll_tokenizer(self.tokenizer, self.vocab)
         self.matchers = Matchers(self.lltok)

@@ -24,11 +24,16 @@ import urllib.error
 import urllib.request
 from concurrent.futures import ThreadPoolExecutor
 
-from .backend import Backend, Completion, Scored, cut_at_stop
+from .backend import Backend, Completion, ModelError, Scored, context_limit, cut_at_stop, load_tokenizer
 
 
-class ServerError(RuntimeError):
-    """The server could not be reached or answered with an error."""
+class ServerError(ModelError):
+    """The server could not be reached or answered with an error; the message says what to do
+    (`status`: the HTTP status when it answered one)."""
+
+    def __init__(self, message: str, status: int | None = None):
+        super().__init__(message)
+        self.status = status
 
 
 class OpenAIBackend(Backend):
@@ -39,29 +44,54 @@ class OpenAIBackend(Backend):
     def __init__(self, url: str, model: str, tokenizer: str, api_key: str | None = None, timeout: float = 120.0,
                  concurrency: int = 16, temperature: float = 0.0, text_prompts: bool = False,
                  grammar_field: bool = True):
-        from transformers import AutoTokenizer
-
         self.url, self.model, self.api_key = url.rstrip("/"), model, api_key
         self.text_prompts, self.grammar_field = text_prompts, grammar_field
         self.timeout, self.concurrency, self.temperature = timeout, concurrency, temperature
-        self.tokenizer = AutoTokenizer.from_pretrained(tokenizer)
+        self.tokenizer = load_tokenizer(tokenizer)
+        self.context = context_limit(self.tokenizer)
         self.retries = 0  # completions that failed validation and were asked again
 
     def config(self) -> dict:
         """The server's model name and sampling temperature."""
         return {"backend": self.name, "model": self.model, "temperature": self.temperature}
 
-    def _post(self, path: str, body: dict) -> dict:
-        req = urllib.request.Request(self.url + path, json.dumps(body).encode(), method="POST",
+    def _post(self, path: str, body: dict | None) -> dict:
+        """POST `body` (GET when None) and return the JSON answer; ServerError saying what to do."""
+        req = urllib.request.Request(self.url + path, None if body is None else json.dumps(body).encode(),
+                                     method="GET" if body is None else "POST",
                                      headers={"Content-Type": "application/json",
                                               **({"Authorization": f"Bearer {self.api_key}"} if self.api_key else {})})
         try:
             with urllib.request.urlopen(req, timeout=self.timeout) as resp:
                 return json.loads(resp.read())
         except urllib.error.HTTPError as exc:
-            raise ServerError(f"{self.url}{path}: HTTP {exc.code}: {exc.read()[:300].decode(errors='replace')}") from None
+            raise ServerError(http_advice(self.url + path, exc.code, exc.read()[:400].decode(errors="replace"),
+                                          body or {}), exc.code) from None
         except (urllib.error.URLError, TimeoutError, ConnectionError) as exc:
-            raise ServerError(f"{self.url}{path}: {exc}") from None
+            reason = getattr(exc, "reason", exc)
+            raise ServerError(f"no answer from {self.url} ({reason}): start the server first (docs/llm.md), "
+                              "or point --url at it") from None
+        except json.JSONDecodeError:
+            raise ServerError(f"{self.url}{path} did not answer JSON: is --url an OpenAI-compatible /v1?") from None
+
+    def probe(self) -> None:
+        """Check before any episode that the server answers and serves `model` (GET /models); learn
+        its context (vLLM's `max_model_len`). ServerError saying what to do; a server without /models
+        passes (transformers 5.23 answers HTTP 500 there without a hub cache)."""
+        try:
+            listing = self._post("/models", None)
+        except ServerError as exc:
+            if exc.status is not None:  # it answers, without a model list (or a broken one)
+                return
+            raise
+        models = {m.get("id"): m for m in listing.get("data") or () if isinstance(m, dict)}
+        if models and self.model not in models:
+            raise ServerError(f"the server at {self.url} serves {', '.join(map(repr, models))}, not "
+                              f"'{self.model}': pass --model exactly as the server names it (a path as given "
+                              "to the server) and --tokenizer DIR for the local tokenizer")
+        served = (models.get(self.model) or {}).get("max_model_len")
+        if isinstance(served, int) and served > 0:
+            self.context = min(served, self.context or served)
 
     def encode(self, text: str) -> list:
         """Token ids of rendered text (the chat template already holds the special tokens)."""
@@ -131,3 +161,16 @@ def _prompt_logprobs(choice: dict, ids: list) -> tuple:
     if lp is None:
         raise ServerError("the server returned no prompt log-probabilities (needs echo+logprobs or prompt_logprobs)")
     return tuple(0.0 if x is None else float(x) for x in lp[:len(ids)])
+
+
+def http_advice(where: str, code: int, text: str, body: dict) -> str:
+    """One message for a server's HTTP error, with what to do for the ones users meet."""
+    if code == 400 and "pinned to" in text:
+        return (f"{where}: HTTP 400: {text.strip()[:200]}: pass --model exactly as the server was started with "
+                "(transformers serve compares the text; a relative path differs from an absolute one) and "
+                "--tokenizer DIR for the local tokenizer")
+    if code == 422 or (code == 400 and "structured_outputs" in text):
+        return (f"{where}: HTTP {code}: the server refused the request ({text.strip()[:160]}); a server "
+                "without vLLM's `structured_outputs` grammar field or token-id prompts (such as transformers "
+                "serve) needs --server transformers-serve")
+    return f"{where}: HTTP {code}: {text.strip()[:300]}"

@@ -19,7 +19,7 @@ from ..grammars import GrammarCache
 from ..harness.policy import Decision, Policy
 from ..runtime.index import runtime_index
 from . import boundary
-from .backend import Request
+from .backend import ModelError, Request, context_limit
 from .chat import fit, render
 from .prompts import ACTION_PREFIX, ASK_EVERY, PromptBuilder
 
@@ -51,10 +51,27 @@ class LLMPolicy(Policy):
         self.builder = PromptBuilder(domain, self.kind, user=user, every=every)
         self.index = runtime_index(domain)
         self.grammars = GrammarCache(self.index.grammar, {t.id: t.text for t in domain.tasks})
-        limit = getattr(backend.tokenizer, "model_max_length", None) or 0
-        self.budget = budget if budget is not None else (limit - max_tokens - THOUGHT_TOKENS
-                                                         if 0 < limit < 1_000_000 else None)
+        self.context = getattr(backend, "context", None) or context_limit(backend.tokenizer)
+        self.budget = budget if budget is not None else self._default_budget()
+        if self.context and self.budget is not None and self.budget + self._reserved() > self.context:
+            raise ModelError(f"--budget {self.budget} plus {self._reserved()} generated tokens exceeds the model's "
+                             f"context ({self.context} tokens): use --budget {max(self.context - self._reserved(), 0)} "
+                             "or less (prompts are cut to the budget), or a model with a longer context")
         self._episodes: dict = {}
+
+    def _reserved(self) -> int:
+        """Tokens a step may generate after its prompt (ReAct: a thought, then the action)."""
+        return self.max_tokens + THOUGHT_TOKENS
+
+    def _default_budget(self) -> int | None:
+        """The model's context less what a step generates (None: no context known, prompts uncut); a
+        context that leaves no room for a prompt is a ModelError."""
+        if not self.context:
+            return None
+        if self.context <= self._reserved():
+            raise ModelError(f"the model's context ({self.context} tokens) leaves no room for a prompt after "
+                             f"{self._reserved()} generated tokens; use a model with a longer context")
+        return self.context - self._reserved()
 
     def config(self) -> dict:
         """Agent, prompt kind, grammar level, token limits and the backend's model."""
@@ -104,10 +121,20 @@ class LLMPolicy(Policy):
         prefs, unmet = self._knowledge(ep)
         kw = {"preferences": prefs, "unmet": unmet, "force_ask": force, "made_after": tuple(ep.made_after)}
         prompt = fit(self.backend.tokenizer, lambda omit: self.builder.prompt(view, omit=omit, **kw), self.budget)
+        self._check_fits(prompt)
         text = ep.grammar.update(view.observed)
         if force:
             text = self.grammars.state(view.task, view.observed, self.level, "ask_only").text
         return prompt, text, force
+
+    def _check_fits(self, prompt) -> None:
+        """ModelError when even the shortest prompt (every older step left out) and what a step generates
+        do not fit the model's context: the model cannot play this benchmark."""
+        over = prompt.meta.get("over_budget", 0)
+        if over and self.context and self.budget + over + self._reserved() > self.context:
+            raise ModelError(f"the shortest prompt ({self.budget + over} tokens: instructions, layout, task and "
+                             f"the last step) and {self._reserved()} generated tokens do not fit the model's "
+                             f"context ({self.context} tokens); use a model with a longer context")
 
     def act(self, view) -> Decision:
         """The next action for one episode."""

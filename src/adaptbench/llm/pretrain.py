@@ -38,13 +38,11 @@ def replay_views(domain, record):
     from ..agents.users import OfflineUser
     from ..harness.episode import Episode
     from ..harness.policy import Decision
-    from ..harness.rollout import Job
     from ..runtime.env import Env
-    from .rollout import episode_id
 
     persona, task = domain.persona[record["persona"]], domain.task[record["task"]]
     env = Env(domain, task.id, persona.id, record["seed"], user=OfflineUser(domain, persona, task))
-    ep = Episode(episode_id(Job(record["agent"], persona.id, task.id, record["seed"])), env)
+    ep = Episode(f"{record['agent']}/{persona.id}/{task.id}/{record['seed']}", env)  # the rollout's episode id
     out, made_after = [], []
     for step in record["steps"]:
         view = ep.view()

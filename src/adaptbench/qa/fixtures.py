@@ -27,12 +27,14 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+from ..errors import AdaptError
+
 VERDICTS = ("satisfied", "violated", "inapplicable")
 KEYS = {"persona", "task", "scene", "seed", "actions", "expect", "mutations", "trick", "why", "pending"}
 MUTATIONS = ("remove", "replace", "swap")
 
 
-class FixtureError(ValueError):
+class FixtureError(AdaptError, ValueError):
     """A fixture file that cannot be read or does not have the fixture format."""
 
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from concurrent.futures import ProcessPoolExecutor
 
-from ..progress import Progress
+from ..progress import progress_bar
 
 _DOMAINS: dict = {}
 
@@ -28,14 +28,13 @@ def _one(args) -> list:
 
 def unsolved(spec: str, personas: list, tasks: list, seeds: list, workers: int = 1, progress: bool = True) -> list:
     """(persona, task, seed, preference, reason) for every applicable preference the oracle violates."""
-    import io
 
     from ..compiler import spec_hash
 
     digest = spec_hash([spec])
     jobs = [(spec, digest, p, t, s) for p in personas for t in tasks for s in seeds]
     out = []
-    with Progress(len(jobs), "check-solvable", stream=None if progress else io.StringIO()) as bar:
+    with progress_bar(len(jobs), "check-solvable", enabled=progress) as bar:
         if workers <= 1:
             for j in jobs:
                 out += _one(j)

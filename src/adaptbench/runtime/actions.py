@@ -10,11 +10,12 @@ from dataclasses import dataclass
 from ..compiler import ast as A
 from ..compiler.model import ActionSpec, CompiledDomain
 from ..compiler.predicates import evaluators
+from ..errors import AdaptError
 from .classes import entity_matcher, node_matcher
 from .world import Node, World
 
 
-class ActionFailed(Exception):
+class ActionFailed(AdaptError):
     """An action could not run; the message is the observation the agent gets."""
 
 

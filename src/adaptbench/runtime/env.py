@@ -158,3 +158,13 @@ def _unknown_action(domain: CompiledDomain, text: str) -> str:
     hint = f" (closest: '{close[0]}')" if close else ""
     return f"I don't understand '{text}'{hint}. Valid forms: " + "; ".join(
         f for a in domain.actions for f in a.forms)
+
+
+def make_env(domain, persona: str, task: str, seed: int | None = 0, user=None, **options) -> Env:
+    """The environment of (persona, task, seed) with the offline user answering questions (or `user`:
+    a callable or an object with `answer`); `options` go to `Env` (`max_steps`, `full_scene`)."""
+    from .users import OfflineUser
+
+    if user is None:
+        user = OfflineUser(domain, domain.persona[persona], domain.task[task])
+    return Env(domain, task=task, persona=persona, seed=seed, user=user, **options)
