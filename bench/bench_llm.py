@@ -6,6 +6,7 @@ in a round) versus one at a time.
 
     python bench/bench_llm.py [--model DIR] [--quick] [--device cuda] [--dtype bfloat16]
                                                  # builds the tiny model when --model is absent
+    python bench/bench_llm.py --model models/smollm2 --settings   # a real model's settings (llm_settings.py)
 
 Needs the `models` extra. Figures go to docs/llm.md.
 """
@@ -199,7 +200,17 @@ def main() -> int:
     p.add_argument("--quick", action="store_true", help="8 episodes of 5 steps, one round (a smoke run)")
     p.add_argument("--device", default="cpu", help="cpu (default), cuda, cuda:1, ... (the >= 4x target is a GPU one)")
     p.add_argument("--dtype", default="auto", help="auto (default), float32, bfloat16, float16")
+    p.add_argument("--settings", action="store_true", help="with --model: steps/s under each backend setting "
+                   "(threads, batch, session cache, budget, dtype; bench/llm_settings.py)")
     args = p.parse_args()
+    if args.settings:
+        from adaptbench.compiler import load_domain
+        from bench.llm_settings import run as settings
+
+        if not args.model:
+            p.error("--settings needs --model DIR")
+        report(settings(load_domain(SPEC), args.model, args.quick))
+        return 0
     report(run(args.model, args.quick, args.device, args.dtype))
     return 0
 

@@ -8,7 +8,7 @@ from adaptbench.runtime.env import Env
 
 def test_an_answer_names_a_preference_by_its_topics(domain):
     pref = {p.id: p for p in domain.persona["juan"].preferences}["whole_milk_in_eggs"]
-    assert names(pref, "Please put some milk in my eggs.")
+    assert names(pref, "Please put some milk in my eggs.", "How do you like your eggs?")
     assert not names(pref, "I'm flexible, you choose.")
 
 
@@ -24,3 +24,66 @@ def test_users_check_llm_needs_a_model(capsys):
 
     assert main(["users", "check", "--llm"]) == 2
     assert "--user-model" in capsys.readouterr().err
+
+
+class _Scripted:
+    """A backend whose user answers by a rule from the question in the prompt (no model)."""
+
+    name = "scripted"
+
+    def __init__(self, tokenizer, rule):
+        self.tokenizer, self.rule = tokenizer, rule
+
+    def generate(self, requests):
+        from adaptbench.llm.backend import Completion
+
+        out = []
+        for r in requests:
+            question = r.prompt.rsplit("The robot asks: ", 1)[1].split("<|end|>")[0].strip()
+            out.append(Completion(self.rule(question), 10, 5, True))
+        return out
+
+    def config(self):
+        return {"backend": self.name}
+
+    def release(self, session):
+        pass
+
+
+def _tokenizer(domain):
+    from adaptbench.llm.tiny import train_tokenizer
+
+    return train_tokenizer(domain, 512)
+
+
+def test_a_user_that_echoes_every_question_scores_zero(domain):
+    """The audit counted the question's own words: an echo scored 100% (the SmolLM2 user did this)."""
+    from adaptbench.llm.audit import audit
+
+    echo = _Scripted(_tokenizer(domain), lambda q: f"The robot asks: {q}")
+    probes, s = audit(domain, echo, ["juan", "maya"], progress=None)
+    assert s["probes"] > 10 and s["hits"] == 0 and s["hit_rate"] == 0.0
+    assert s["echo"] == s["probes"] and all(p.verdict == "echo" for p in probes)
+
+
+def test_non_answers_miss_and_the_offline_answers_hit(domain):
+    from adaptbench.agents.users import OfflineUser
+    from adaptbench.llm.audit import audit
+
+    tok = _tokenizer(domain)
+    _, s = audit(domain, _Scripted(tok, lambda q: "I don't mind, you choose."), ["juan"], progress=None)
+    assert s["hits"] == 0 and s["non-answer"] == s["probes"]
+    juan = OfflineUser(domain, domain.persona["juan"])
+    probes, s = audit(domain, _Scripted(tok, juan.answer), ["juan"], progress=None)
+    assert s["hit_rate"] >= 0.9 and s["location_leaks"] == 0, [p for p in probes if not p.hit]
+
+
+def test_verdicts_count_only_words_the_question_did_not_contain(domain):
+    from adaptbench.llm.audit import verdict
+
+    pref = {p.id: p for p in domain.persona["juan"].preferences}["whole_milk_in_eggs"]
+    q = "How do you like your eggs?"
+    assert verdict(pref, q, "I like my eggs.") == "echo"
+    assert verdict(pref, q, "Scrambled, with a splash of whole milk.") == "hit"
+    assert verdict(pref, q, "I'm flexible about eggs.") == "non-answer"
+    assert verdict(pref, q, "Sunny weather today.") == "miss"

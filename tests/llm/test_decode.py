@@ -102,6 +102,25 @@ def test_a_session_reads_only_new_tokens_and_generates_the_same(domain, tiny):
     assert len(cached.sessions) == 0
 
 
+def test_a_new_episode_starts_from_the_prefix_another_shares_and_generates_the_same(domain, tiny):
+    """Episodes open with the same system message: a new session's first prompt reads only what follows
+    the longest prefix it shares with a kept session (or with a prompt read earlier in the same call)."""
+    from adaptbench.llm.backend import Request
+
+    cached, fresh = _sharp(tiny), _sharp(tiny, sessions=0)
+    g = _grammar(domain)
+    a, b, c = _prompts(domain, cached, 3)
+    first = cached.generate([Request(a, g, (), 16, session="one")])[0]
+    assert first.stats["cached_tokens"] == 0
+    second = cached.generate([Request(c, g, (), 16, session="two")])[0]
+    shared = sum(1 for _ in zip(cached.encode(a), cached.encode(c), strict=False))
+    assert 64 <= second.stats["cached_tokens"] <= shared
+    assert second.text == fresh.generate([Request(c, g, (), 16)])[0].text
+    both = fresh.generate([Request(b, g, (), 16, session="x"), Request(c, g, (), 16, session="y")])
+    assert both[0].stats["cached_tokens"] == 0 and both[1].stats["cached_tokens"] >= 64  # one call, one read
+    assert [o.text for o in both] == [fresh.generate([Request(p, g, (), 16)])[0].text for p in (b, c)]
+
+
 def test_a_truncated_prompt_reuses_the_prefix_it_still_shares(domain, backend):
     from adaptbench.llm.backend import Request
 
@@ -109,8 +128,10 @@ def test_a_truncated_prompt_reuses_the_prefix_it_still_shares(domain, backend):
     backend.generate([Request(text, None, (), 4, session="cut")])
     shorter = text[: len(text) // 2] + "<|end|>\n<|assistant|>\n"
     out = backend.generate([Request(shorter, None, (), 4, session="cut")])[0]
-    shared = len(backend.encode(text[: len(text) // 2])) - 2
-    assert shared <= out.stats["cached_tokens"] < out.prompt_tokens
+    from adaptbench.llm.decode import common_prefix
+
+    shared = common_prefix(backend.encode(text), backend.encode(shorter))
+    assert shared > 64 and out.stats["cached_tokens"] == shared < out.prompt_tokens
     backend.release("cut")
 
 

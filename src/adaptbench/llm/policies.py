@@ -18,6 +18,7 @@ import time
 from ..grammars import GrammarCache
 from ..harness.policy import Decision, Policy
 from ..runtime.index import runtime_index
+from . import boundary
 from .backend import ModelError, Request, context_limit
 from .chat import fit, render
 from .prompts import ACTION_PREFIX, ASK_EVERY, PromptBuilder
@@ -149,12 +150,12 @@ class LLMPolicy(Policy):
         thoughts = [""] * len(views)
         if self.kind == "react":
             todo = [i for i, (_, _, force) in enumerate(prepared) if not force]
-            outs = self.backend.generate([Request(texts[i], None, ("\n",), THOUGHT_TOKENS, session=views[i].episode)
+            outs = boundary.generate(self.backend, [Request(texts[i], None, ("\n",), THOUGHT_TOKENS, session=views[i].episode)
                                           for i in todo])
             for i, out in zip(todo, outs, strict=True):
                 thoughts[i] = out.text.strip()
                 texts[i] += thoughts[i] + "\n" + ACTION_PREFIX
-        outs = self.backend.generate([Request(t, g, (), self.max_tokens, self._parses, v.episode)
+        outs = boundary.generate(self.backend, [Request(t, g, (), self.max_tokens, self._parses, v.episode)
                                       for t, (_, g, _), v in zip(texts, prepared, views, strict=True)])
         return [self._decision(p, out, force, thought, prep_seconds / len(views))
                 for (p, _, force), out, thought in zip(prepared, outs, thoughts, strict=True)]

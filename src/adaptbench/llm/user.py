@@ -17,6 +17,7 @@ rendered prompt and `answer` uses it only when the step renders exactly that pro
 
 from __future__ import annotations
 
+from . import boundary
 from .backend import Completion, Request
 from .chat import fit, render
 from .prompts import Prompt, persona_messages
@@ -111,7 +112,7 @@ class LLMUser:
         for user, _, _ in asks:
             user._prepared = {}
         texts = [user._rendered(q, d) for user, q, d in asks]
-        outs = asks[0][0].backend.generate([user._request(t) for (user, _, _), t in zip(asks, texts, strict=True)])
+        outs = boundary.generate(asks[0][0].backend, [user._request(t) for (user, _, _), t in zip(asks, texts, strict=True)])
         for (user, _, _), text, out in zip(asks, texts, outs, strict=True):
             user._prepared[text] = (out, len(asks))
 
@@ -121,7 +122,7 @@ class LLMUser:
         out, batch = self._prepared.pop(text, (None, 1))
         self._prepared.clear()  # an answer prepared for another prompt is stale once the user has answered
         if out is None:
-            out = self.backend.generate([self._request(text)])[0]
+            out = boundary.generate(self.backend, [self._request(text)])[0]
         self.calls.append((out.prompt_tokens, out.tokens, out.stats.get("seconds"), batch))
         return _reply(out)
 
