@@ -68,7 +68,7 @@ def build_parser() -> argparse.ArgumentParser:
         "evaluate preference satisfaction.", epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     _add_validate(sub)
-    from . import author, episode, grammar, runs, serve_env, train_grpo, view
+    from . import author, episode, grammar, runs, serve_env, train, train_grpo, view
 
     author.add_commands(sub)
     episode.add_commands(sub)
@@ -76,6 +76,7 @@ def build_parser() -> argparse.ArgumentParser:
     grammar.add_commands(sub)
     view.add_commands(sub)
     serve_env.add_commands(sub)
+    train.add_commands(sub)  # owns the `train` group
     train_grpo.add_commands(sub)  # after any module that registers the `train` group
     return parser
 

@@ -1,0 +1,209 @@
+"""`adapt train data`: Reflection-DPO's dataset (Algorithm 1, DAgger-style).
+
+Rollouts follow the student (batched over episodes through the backend); at each step the privileged
+teacher proposes a^t from the student's state; steps where both act the same (same parsed action) and steps
+after two failures in a row are skipped; otherwise the student reflects (or the topic proposer asks), the
+user answers, P(a^t|x), P(a^t|x,q,answer), P(a^s|x) are scored through the backend's `score`, and the
+decision rule (`decide`) picks the chosen completion. Rows go to `pairs.jsonl` as they are made.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import Counter
+from dataclasses import dataclass, field
+
+from ..harness.batches import episode_id
+from ..harness.episode import Episode
+from ..harness.rollout import Job
+from ..llm.backend import Request
+from ..llm.chat import render
+from ..llm.prompts import ACTION_PREFIX
+from ..runtime.env import make_env
+from .dataset import PairStore, mix_line, row_key
+from .decide import EPS1, EPS2, decide
+from .relabel import (
+    ScriptedTeacher,
+    answered_prompt,
+    question_text,
+    reflection_request,
+    topic_question,
+    topics,
+)
+from .rows import completion_tokens, fit_row
+from .score import step_probabilities
+
+PHASES = ("student", "teacher", "reflection", "scoring")
+
+
+@dataclass(frozen=True)
+class DataSettings:
+    """What `adapt train data` builds: the split, the selection, the thresholds and limits."""
+
+    split: str | None
+    personas: tuple
+    tasks: tuple
+    seeds: tuple = (0,)
+    interactions: int = 1
+    questions: str = "student"  # or "topics"
+    eps1: float = EPS1
+    eps2: float = EPS2
+    max_length: int | None = 1024
+    width: int = 8
+
+
+@dataclass
+class Timings:
+    """Seconds spent per phase and steps considered (the benchmark's split)."""
+
+    seconds: dict = field(default_factory=lambda: dict.fromkeys(PHASES, 0.0))
+
+    def add(self, phase: str, t0: float) -> None:
+        """Add the time since `t0` to `phase`."""
+        self.seconds[phase] += time.perf_counter() - t0
+
+
+@dataclass
+class _Run:
+    job: Job
+    interaction: int
+    episode: Episode
+    failures: int = 0
+    made_after: list = field(default_factory=list)
+
+
+def jobs(settings: DataSettings) -> list:
+    """(persona, task, seed, interaction) in order."""
+    return [(p, t, s, i) for p in settings.personas for t in settings.tasks for s in settings.seeds
+            for i in range(1, settings.interactions + 1)]
+
+
+class Builder:
+    """Builds the pairs of a selection with one student and one teacher."""
+
+    def __init__(self, domain, student, settings: DataSettings, store: PairStore, model_name: str):
+        self.domain, self.student, self.s, self.store = domain, student, settings, store
+        self.teacher = ScriptedTeacher(domain)
+        self.model_name = model_name
+        self.topics = topics(domain)
+        self.times = Timings()
+        self.parser = student.index.parser
+
+    def run(self, progress=None) -> None:
+        """Every job, `width` episodes at a time."""
+        todo = jobs(self.s)
+        for i in range(0, len(todo), self.s.width):
+            self._batch(todo[i:i + self.s.width])
+            if progress is not None:
+                progress(min(i + self.s.width, len(todo)), len(todo))
+
+    def _start(self, persona, task, seed, interaction) -> _Run:
+        job = Job(self.student.name, persona, task, seed)
+        env = make_env(self.domain, persona, task, seed)
+        ep = Episode(f"{episode_id(job)}/i{interaction}", env)
+        self.student.start(ep.id, env)
+        self.teacher.start(ep.id, env)
+        return _Run(job, interaction, ep)
+
+    def _batch(self, batch) -> None:
+        runs = [self._start(*j) for j in batch]
+        while True:
+            live = [r for r in runs if not r.episode.done]
+            if not live:
+                break
+            self._step(live)
+        for r in runs:
+            self.student.end(r.episode.id)
+            self.teacher.end(r.episode.id)
+
+    def _step(self, live: list) -> None:
+        views = [r.episode.view() for r in live]
+        t0 = time.perf_counter()
+        decisions = self.student.act_batch(views)
+        self.times.add("student", t0)
+        todo = []
+        for r, v, d in zip(live, views, decisions, strict=True):
+            key = (r.job.persona, r.job.task, r.job.seed, r.interaction, v.step)
+            if not self.store.done(key):
+                todo.append((r, v, d))
+        self._consider(todo)
+        for r, d in zip(live, decisions, strict=True):
+            turn = r.episode.apply(d)
+            r.failures = 0 if turn.ok else r.failures + 1
+            r.made_after.append(tuple(r.episode.view().made))
+
+    def _consider(self, todo: list) -> None:
+        t0 = time.perf_counter()
+        acts = [self.teacher.action(v) for _, v, _ in todo]
+        self.times.add("teacher", t0)
+        asks = []
+        for (r, v, d), a_t in zip(todo, acts, strict=True):
+            reason = self._skip(r, d.action, a_t)
+            if reason:
+                self.store.append(self._row(r, v, d, a_t, None, reason))
+            else:
+                asks.append((r, v, d, a_t))
+        questions = self._reflect(asks)
+        for (r, v, d, a_t), q in zip(asks, questions, strict=True):
+            self.store.append(self._row(r, v, d, a_t, q, None))
+
+    def _skip(self, r: _Run, student: str, teacher: str) -> str | None:
+        if r.failures >= 2:
+            return "after_two_failures"
+        ps, pt = self.parser.parse(student), self.parser.parse(teacher)
+        same = ps is not None and pt is not None and ps.action == pt.action
+        return "same_action" if same or student.strip() == teacher.strip() else None
+
+    def _reflect(self, asks: list) -> list:
+        t0 = time.perf_counter()
+        if self.s.questions == "topics":
+            out = [topic_question(self.topics, a_t, v.task_text) for _, v, _, a_t in asks]
+        else:
+            reqs = [reflection_request(self.student, v, d.action, a_t, tuple(r.made_after)) for r, v, d, a_t in asks]
+            out = [c.text.strip() for c in self.student.backend.generate(reqs)] if reqs else []
+        self.times.add("reflection", t0)
+        return out
+
+    def _row(self, r: _Run, view, decision, a_t: str, q: str | None, reason: str | None) -> dict:
+        tok = self.student.backend.tokenizer
+        prompt = decision.prompt
+        answer = None
+        probs = None
+        kind = "skipped"
+        if reason is None:
+            answer = r.episode.env.user(question_text(q) or q, ()) if question_text(q) else ""
+            t0 = time.perf_counter()
+            x = render(tok, prompt)
+            xq = render(tok, answered_prompt(self.student, prompt, view, q, answer))
+            probs = step_probabilities(self.student.backend, x, xq, a_t, decision.action)
+            self.times.add("scoring", t0)
+            d = decide(probs.p_teacher, probs.p_teacher_given_answer, probs.p_student, self.s.eps1, self.s.eps2)
+            kind, reason = d.kind, d.skip_reason
+        chosen = {"question": q, "teacher": a_t}.get(kind)
+        fitted, n, cut = fit_row(tok, prompt, completion_tokens(tok, ACTION_PREFIX + decision.action,
+                                                                ACTION_PREFIX + (chosen or "")), self.s.max_length)
+        return self._fields(r, view, decision.action, a_t, q, answer, probs, kind, reason, chosen, fitted, n, cut)
+
+    def _fields(self, r, view, a_s, a_t, q, answer, probs, kind, reason, chosen, fitted, n, cut) -> dict:
+        msg = lambda t: [{"role": "assistant", "content": ACTION_PREFIX + t}]  # noqa: E731
+        p = probs
+        return {
+            "prompt": [dict(m) for m in fitted.messages], "chosen": msg(chosen) if chosen else None,
+            "rejected": msg(a_s), "kind": kind, "skip_reason": reason, "teacher_action": a_t,
+            "student_action": a_s, "question": q, "answer": answer,
+            "question_source": self.s.questions if q else None,
+            "p_teacher": p and p.p_teacher, "p_teacher_given_answer": p and p.p_teacher_given_answer,
+            "p_student": p and p.p_student,
+            "delta_q": p and p.p_teacher_given_answer - p.p_teacher, "delta_t": p and p.p_student - p.p_teacher,
+            "eps1": self.s.eps1, "eps2": self.s.eps2, "prompt_tokens": n, "truncated": cut,
+            "spec_hash": self.domain.spec_hash, "split": self.s.split, "persona": r.job.persona,
+            "task": r.job.task, "seed": r.job.seed, "interaction": r.interaction, "step": view.step,
+            "student_model": self.model_name, "teacher": self.teacher.name}
+
+
+def mix(rows: list) -> Counter:
+    """Counts by kind."""
+    return Counter(r["kind"] for r in rows)
+
+
+__all__ = ["Builder", "DataSettings", "Request", "jobs", "mix", "mix_line", "row_key"]

@@ -1,0 +1,113 @@
+"""The reflection dataset on disk: `pairs.jsonl` (one object per considered step, appended as it goes,
+read back to resume) and, at the end, `dataset/` (a Hugging Face `datasets` folder of the trainable rows:
+kind question or teacher) and `summary.json` (the mix).
+
+    store = PairStore(out)
+    if not store.done(key): store.append(row)
+    summary = store.finish()
+"""
+
+from __future__ import annotations
+
+import json
+import statistics
+from collections import Counter
+from pathlib import Path
+
+TRAINABLE = ("question", "teacher")
+FIELDS = ("prompt", "chosen", "rejected", "kind", "skip_reason", "teacher_action", "student_action", "question",
+          "answer", "question_source", "p_teacher", "p_teacher_given_answer", "p_student", "delta_q", "delta_t",
+          "eps1", "eps2", "prompt_tokens", "truncated", "spec_hash", "split", "persona", "task", "seed",
+          "interaction", "step", "student_model", "teacher")
+
+
+def row_key(row: dict) -> tuple:
+    """What identifies a considered step (resuming skips the keys already written)."""
+    return (row["persona"], row["task"], row["seed"], row["interaction"], row["step"])
+
+
+def check_row(row: dict) -> None:
+    """ValueError unless the row has every field of the dataset contract and a coherent kind."""
+    missing = [f for f in FIELDS if f not in row]
+    if missing:
+        raise ValueError(f"pair row lacks {', '.join(missing)}")
+    if row["kind"] not in ("question", "teacher", "skipped"):
+        raise ValueError(f"unknown pair kind '{row['kind']}'")
+    if (row["kind"] == "skipped") != (row["chosen"] is None):
+        raise ValueError("a skipped row has no chosen completion, and only a skipped row")
+
+
+class PairStore:
+    """`pairs.jsonl` under `out`: rows appended and flushed one by one; a torn last line (a kill mid-write)
+    is dropped on reopening."""
+
+    def __init__(self, out):
+        self.out = Path(out)
+        self.out.mkdir(parents=True, exist_ok=True)
+        self.path = self.out / "pairs.jsonl"
+        self.rows = self._read()
+        self.keys = {row_key(r) for r in self.rows}
+
+    def _read(self) -> list:
+        if not self.path.is_file():
+            return []
+        rows, good = [], 0
+        with self.path.open("rb") as f:
+            for line in f:
+                try:
+                    rows.append(json.loads(line))
+                except ValueError:
+                    break
+                good += len(line)
+        with self.path.open("r+b") as f:  # cut a torn last line so appends start on a clean line
+            f.truncate(good)
+        return rows
+
+    def done(self, key: tuple) -> bool:
+        """Whether a step of this key is already written."""
+        return tuple(key) in self.keys
+
+    def append(self, row: dict) -> None:
+        """Check the row and write it as one line (flushed)."""
+        check_row(row)
+        with self.path.open("a", encoding="utf-8") as f:
+            f.write(json.dumps(row, ensure_ascii=False) + "\n")
+        self.rows.append(row)
+        self.keys.add(row_key(row))
+
+    def finish(self) -> dict:
+        """Write `dataset/` (trainable rows) and `summary.json`; returns the summary."""
+        from datasets import Dataset
+
+        train = [r for r in self.rows if r["kind"] in TRAINABLE]
+        if train:
+            Dataset.from_list(train).save_to_disk(str(self.out / "dataset"))
+        summary = summarise(self.rows)
+        (self.out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+        return summary
+
+
+def summarise(rows: list) -> dict:
+    """The mix: counts by kind and skip reason, shares of questions and teacher actions, prompt-token
+    statistics and rows truncated (none is ever dropped)."""
+    kinds = Counter(r["kind"] for r in rows)
+    reasons = Counter(r["skip_reason"] for r in rows if r["kind"] == "skipped")
+    tokens = [r["prompt_tokens"] for r in rows]
+    n = len(rows)
+    return {"pairs": n, "trainable": kinds["question"] + kinds["teacher"], "kinds": dict(kinds),
+            "skip_reasons": dict(reasons), "share": {k: round(kinds[k] / n, 4) if n else 0.0 for k in KINDS_ALL},
+            "question_sources": dict(Counter(r["question_source"] for r in rows if r["kind"] == "question")),
+            "prompt_tokens": {"min": min(tokens), "max": max(tokens), "mean": round(statistics.fmean(tokens), 1)}
+            if tokens else {}, "truncated": sum(bool(r["truncated"]) for r in rows), "dropped": 0}
+
+
+KINDS_ALL = ("question", "teacher", "skipped")
+
+
+def mix_line(summary: dict) -> str:
+    """The mix as one line for the terminal."""
+    s, k = summary["share"], summary["kinds"]
+    reasons = ", ".join(f"{r} {c}" for r, c in sorted(summary["skip_reasons"].items())) or "none"
+    return (f"{summary['pairs']} steps: {k.get('question', 0)} questions ({s['question']:.0%}), "
+            f"{k.get('teacher', 0)} teacher actions ({s['teacher']:.0%}), {k.get('skipped', 0)} skipped "
+            f"({reasons}); {summary['truncated']} prompts left-truncated, 0 dropped")

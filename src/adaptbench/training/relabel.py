@@ -1,0 +1,94 @@
+"""Teacher relabelling and reflection for Reflection-DPO (Algorithm 1).
+
+- `ScriptedTeacher`: the privileged oracle planning from the student's own state (its plan searched once per
+  episode at `start`, then re-executed from the view's known world at every step), so a^t is what the
+  teacher would do next in the state the student reached.
+- `reflection_request`: the reflection prompt (`prompts.reflection_messages`) as a generation under the
+  grammar's Ask-only rule: the student proposes the question q.
+- `topic_question`: for a model too small to write questions, a question built from the preferences'
+  topics (domain-wide, not the persona's): the topic sharing most words with the teacher's action.
+"""
+
+from __future__ import annotations
+
+import re
+
+from ..agents.scripted import OraclePolicy
+from ..harness.policy import Turn
+from ..llm.backend import Request
+from ..llm.chat import render
+from ..llm.prompts import ACTION_PREFIX, Prompt, reflection_messages
+from ..runtime.users import words
+
+QUESTION = re.compile(r'^Ask\s+"(.*)"\s*$', re.S)
+
+
+class ScriptedTeacher:
+    """The scripted oracle as a relabeller: `start(episode, env)`, then `action(view)` for any state."""
+
+    name = "oracle"
+
+    def __init__(self, domain):
+        self.policy = OraclePolicy(domain)
+
+    def start(self, episode: str, env) -> None:
+        """Search the episode's best plan (privileged: reads the persona, simulates the scene)."""
+        self.policy.start(episode, env)
+
+    def action(self, view) -> str:
+        """The teacher's next action from the student's state (Declare Done when the plan is exhausted)."""
+        try:
+            return next(self.policy.plan(view))
+        except StopIteration:
+            return "Declare Done"
+
+    def end(self, episode: str) -> None:
+        """Forget the episode's plan."""
+        self.policy.end(episode)
+
+
+def reflection_request(student, view, student_action: str, teacher_action: str, made_after=()) -> Request:
+    """The generation that asks the student which question would have let it predict `teacher_action`."""
+    msgs = reflection_messages(student.builder, view, student_action, teacher_action, made_after)
+    text = render(student.backend.tokenizer, Prompt(msgs, ACTION_PREFIX))
+    grammar = student.grammars.state(view.task, view.observed, student.level, "ask_only").text
+    return Request(text, grammar, (), student.max_tokens)
+
+
+def question_text(action: str) -> str | None:
+    """The question inside an `Ask "..."` action (None when it is not one)."""
+    m = QUESTION.match(action.strip())
+    return m.group(1) if m else None
+
+
+def topics(domain) -> tuple:
+    """Every topic of every persona's preferences, sorted (what the topic proposer chooses from)."""
+    return tuple(sorted({t for p in domain.personas for pref in p.preferences for t in pref.topics}))
+
+
+def topic_question(all_topics: tuple, teacher_action: str, task_text: str) -> str:
+    """An Ask action about the topic sharing most words with the teacher's action (then the task)."""
+    target, context = words(teacher_action), words(task_text)
+    best = max(all_topics, key=lambda t: (len(words(t) & target), len(words(t) & context), -all_topics.index(t)))
+    return f'Ask "What would you like for the {best}?"'
+
+
+def answered_prompt(student, prompt: Prompt, view, question: str, answer: str) -> Prompt:
+    """The student's prompt x continued with the question and the user's answer (x, q, answer)."""
+    turn = Turn(question, "", True, answer)
+    msgs = (*prompt.messages, {"role": "assistant", "content": ACTION_PREFIX + question},
+            {"role": "user", "content": student.builder.turn(view.task_text, turn, view.made)})
+    return Prompt(msgs, ACTION_PREFIX, prompt.omitted)
+
+
+def student_policy(backend, domain, **kw):
+    """The student: the planner policy whose decisions keep their `Prompt` (the rows' prompt x)."""
+    from dataclasses import replace
+
+    from ..llm.policies import LLMPolicy
+
+    class Student(LLMPolicy):
+        def _decision(self, prompt, out, force, thought, prep):
+            return replace(super()._decision(prompt, out, force, thought, prep), prompt=prompt)
+
+    return Student(backend, domain, "planner", **kw)

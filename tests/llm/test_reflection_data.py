@@ -1,0 +1,138 @@
+"""Reflection-DPO's dataset (`adapt train data`, adaptbench.training): the decision rule, Δ through the batched
+scoring path against a direct forward pass, left truncation of long prompts, resume after a kill, provenance."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+from adaptbench.training.dataset import FIELDS, PairStore, summarise
+from adaptbench.training.decide import decide
+
+from .conftest import SKIP_MODELS, play
+
+
+@pytest.mark.parametrize(("pt", "pta", "ps", "kind", "reason"), [
+    (0.6, 0.6, 0.4, "teacher", None),        # Δt < 0: the student already leans to a^t
+    (0.1, 0.5, 0.6, "question", None),       # Δt = 0.5 >= 0, Δq = 0.4 > ε1
+    (0.1, 0.25, 0.5, "teacher", None),       # Δq = 0.15 <= ε1, Δt = 0.4 < ε2
+    (0.1, 0.2, 0.9, "skipped", "no_gain"),   # Δq = 0.1, Δt = 0.8 >= ε2
+    (0.25, 0.375, 0.75, "skipped", "no_gain"),  # Δt = 0.5 exactly is not < ε2
+])
+def test_decision_rule(pt, pta, ps, kind, reason):
+    d = decide(pt, pta, ps)
+    assert (d.kind, d.skip_reason) == (kind, reason)
+    assert d.delta_q == pytest.approx(pta - pt) and d.delta_t == pytest.approx(ps - pt)
+
+
+def test_decision_rule_thresholds_are_options():
+    assert decide(0.1, 0.25, 0.9, eps1=0.1).kind == "question"
+    assert decide(0.1, 0.1, 0.9, eps2=0.9).kind == "teacher"
+
+
+def _direct(model, tok, prompt: str, action: str) -> float:
+    import torch
+
+    p = tok(prompt, add_special_tokens=False)["input_ids"]
+    a = tok(action, add_special_tokens=False)["input_ids"]
+    with torch.no_grad():
+        logits = model(input_ids=torch.tensor([p + a])).logits[0].float()
+    logp = torch.log_softmax(logits, -1)
+    probs = [logp[len(p) - 1 + j, t].exp().item() for j, t in enumerate(a)]
+    return sum(probs) / len(probs)
+
+
+@SKIP_MODELS
+def test_delta_batched_equals_direct_forward(backend, domain):
+    from transformers import AutoModelForCausalLM
+
+    from adaptbench.llm.chat import render
+    from adaptbench.training.relabel import answered_prompt, student_policy
+    from adaptbench.training.score import step_probabilities
+
+    student = student_policy(backend, domain)
+    ep, _ = play(domain)
+    view = ep.view()
+    student.start(ep.id, ep.env)
+    d = student.act_batch([view])[0]
+    x = render(backend.tokenizer, d.prompt)
+    q = 'Ask "How do you like your eggs?"'
+    xq = render(backend.tokenizer, answered_prompt(student, d.prompt, view, q, "Scrambled, please."))
+    teacher, own = "Move egg_0 to pan_0", "Look for butter"
+    probs = step_probabilities(backend, x, xq, teacher, own)
+    model = AutoModelForCausalLM.from_pretrained(backend.config()["model"], dtype="float32").eval()
+    tok = backend.tokenizer
+    assert probs.p_teacher == pytest.approx(_direct(model, tok, x, teacher), abs=1e-5)
+    assert probs.p_student == pytest.approx(_direct(model, tok, x, own), abs=1e-5)
+    assert probs.p_teacher_given_answer == pytest.approx(_direct(model, tok, xq, teacher), abs=1e-5)
+
+
+@SKIP_MODELS
+def test_long_prompt_is_cut_from_the_left_and_reported(backend, domain):
+    from adaptbench.llm.chat import count, render
+    from adaptbench.training.relabel import student_policy
+    from adaptbench.training.rows import fit_row
+
+    student = student_policy(backend, domain, budget=None)
+    ep, _ = play(domain, steps=("Look for eggs", "Open fridge_0", "Look for butter", "Look for pan",
+                                "Look for milk", "Look for salt"))
+    student.start(ep.id, ep.env)
+    prompt = student.act_batch([ep.view()])[0].prompt
+    full = count(backend.tokenizer, render(backend.tokenizer, prompt))
+    cut, n, truncated = fit_row(backend.tokenizer, prompt, 10, full - 20)
+    assert truncated and n <= full - 30 and cut.omitted > prompt.omitted
+    assert cut.messages[0] == prompt.messages[0] and cut.messages[-1] == prompt.messages[-1]  # kept, cut on the left
+    same, m, t2 = fit_row(backend.tokenizer, prompt, 10, full + 10)
+    assert not t2 and m == full and same.messages == prompt.messages
+
+
+def _cmd(tiny, out):
+    return [sys.executable, "-m", "adaptbench.cli", "train", "data", "--student", str(tiny), "--out", str(out),
+            "--personas", "sarah,ron", "--tasks", "eggs", "--split", "1", "--batch", "1", "--max-length", "600"]
+
+
+@SKIP_MODELS
+def test_resume_after_kill_and_provenance(tiny, tmp_path):
+    out = tmp_path / "data"
+    proc = subprocess.Popen(_cmd(tiny, out), stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
+    pairs = out / "pairs.jsonl"
+    deadline = time.time() + 120
+    while time.time() < deadline and proc.poll() is None and (not pairs.is_file() or len(pairs.read_text().splitlines()) < 5):
+        time.sleep(0.2)
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    first = len(pairs.read_text().splitlines())
+    assert first >= 5 and not (out / "summary.json").exists()
+    done = subprocess.run(_cmd(tiny, out), capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    rows = [json.loads(x) for x in pairs.read_text().splitlines()]
+    keys = [(r["persona"], r["task"], r["seed"], r["interaction"], r["step"]) for r in rows]
+    assert len(keys) == len(set(keys)) and len(rows) > first
+    assert {r["persona"] for r in rows} == {"sarah", "ron"}
+    for r in rows:
+        assert set(FIELDS) <= set(r)
+        assert r["split"] == 1 and r["task"] == "eggs" and r["teacher"] == "oracle" and r["spec_hash"]
+        assert r["rejected"][0]["role"] == "assistant" and r["prompt"][0]["role"] == "system"
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["pairs"] == len(rows) and "steps:" in done.stdout
+
+
+def test_store_drops_torn_line_and_summarises(tmp_path):
+    row = {f: None for f in FIELDS} | {"kind": "skipped", "skip_reason": "same_action", "persona": "juan",
+                                       "task": "eggs", "seed": 0, "interaction": 1, "step": 0, "prompt_tokens": 9,
+                                       "truncated": False}
+    store = PairStore(tmp_path)
+    store.append(row)
+    with (tmp_path / "pairs.jsonl").open("a") as f:
+        f.write('{"kind": "sk')  # killed mid-write
+    again = PairStore(tmp_path)
+    assert len(again.rows) == 1 and again.done(("juan", "eggs", 0, 1, 0))
+    again.append(row | {"step": 1})
+    s = summarise(again.rows)
+    assert s["pairs"] == 2 and s["skip_reasons"] == {"same_action": 2} and s["dropped"] == 0
