@@ -15,11 +15,12 @@ import time
 
 def _steps_per_second(domain, model: str, episodes: int, steps: int, threads: int, batch: int,
                       sessions: bool, budget: int | None, dtype: str) -> tuple:
+    from adaptbench.llm.rollout import run_batched
+
     from adaptbench.agents.users import OfflineUser
     from adaptbench.harness.rollout import Job
     from adaptbench.llm.hf import TransformersBackend
     from adaptbench.llm.policies import LLMPolicy
-    from adaptbench.llm.rollout import run_batched
 
     backend = TransformersBackend(model, dtype=dtype, batch_size=batch, threads=threads,
                                   **({} if sessions else {"sessions": 0}))
