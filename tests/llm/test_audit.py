@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import pytest
+
 from adaptbench.llm.audit import leaks, names
 from adaptbench.runtime.env import Env
 
@@ -51,6 +53,7 @@ class _Scripted:
 
 
 def _tokenizer(domain):
+    pytest.importorskip("transformers", reason="the audit renders prompts with a tokenizer (models extra)")
     from adaptbench.llm.tiny import train_tokenizer
 
     return train_tokenizer(domain, 512)
