@@ -125,9 +125,11 @@ def notes(rows: list) -> list:
     """Lines said under the table: which k, pairs left out of pass^k, questions in records too old to judge."""
     out = []
     ks = ks_of(rows)
-    if len(ks) > 1 or rows:
-        out.append(f"pass^k (tau-bench): the chance that k scene seeds of a (persona, task) all fully satisfy it, "
-                   f"averaged over pairs; k={max(ks)} is the most seeds every (method, persona, task) pair has")
+    if rows:
+        out.append("pass^k (tau-bench): the chance that k scene seeds of a (persona, task) pair all satisfy every "
+                   f"applicable preference, averaged over pairs; k={max(ks)} is the most seeds every (method, persona, "
+                   "task) pair has" if max(ks) > 1 else "pass^1: the share of episodes satisfying every applicable "
+                   "preference (some (method, persona, task) pair has one seed, so no larger k for every row)")
     left = sum(r["pass_k"].left_out for r in rows)
     if left:
         out.append(f"{left} (method, persona, task) pair(s) had no applicable preference in any seed and are "

@@ -73,7 +73,8 @@ def render_csv(rows: list) -> str:
 def notes(rows: list) -> list:
     """Lines under the tables: missing rows, and trained methods whose records carry no split."""
     out = []
-    missing = sorted({prow.id for _, section in sections(rows) for prow, row in section if prow and row is None})
+    missing = list(dict.fromkeys(prow.id for _, section in sections(rows) for prow, row in section
+                                 if prow and row is None))
     if missing:
         out.append(f"missing (no records): {', '.join(missing)}")
     for r in rows:

@@ -79,19 +79,28 @@ def _final_satisfied(record) -> list:
     return [p["id"] for p in record.preferences if p.get("verdict") == "satisfied"]
 
 
+def _env(record, domain):
+    """The record's environment: its seed's scene, or the full scene when that is what the record's scene id
+    names (`adapt play --full-scene`); the recorded replies answer its questions."""
+    from ..runtime.env import Env
+
+    replies = [s.reply for s in record.steps if s.is_question]
+    for full in (False, True):
+        env = Env(domain, record.task, record.persona, None if full else record.seed, full_scene=full,
+                  user=_Replies(replies), max_steps=max(len(record.steps), 1))
+        if record.scene is None or env.scene.scene_id == record.scene:
+            return env
+    raise ReplayMismatch("scene differs from the record")
+
+
 def replay_curve(record, domain) -> Curve:
     """The curve of one episode record (see the module doc); ReplayMismatch when the replay does not
     reproduce the record."""
-    from ..runtime.env import Env
     from ..runtime.verify import Ctx, verdict
 
     if record.spec_hash is not None and record.spec_hash != domain.spec_hash:
         raise ReplayMismatch("spec differs from --spec")
-    replies = [s.reply for s in record.steps if s.is_question]
-    env = Env(domain, record.task, record.persona, record.seed, user=_Replies(replies),
-              max_steps=max(len(record.steps), 1))
-    if record.scene is not None and env.scene.scene_id != record.scene:
-        raise ReplayMismatch("scene differs from the record")
+    env = _env(record, domain)
     ids = set(_final_satisfied(record))
     prefs = [p for p in domain.persona[record.persona].preferences if p.id in ids]
     if len(prefs) != len(ids):
