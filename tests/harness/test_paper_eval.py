@@ -71,6 +71,22 @@ def test_the_papers_numbers_are_issue_15s():
                          "no-dpo": (35.3, 34.9, 2.9, 2.9)}
 
 
+def test_method_and_split_from_adapt_trains_output_folder(tmp_path):
+    """`adapt train` writes OUT/train.json, OUT/settings.json and the model OUT/merged: the method is
+    train.json's, the split the training data's (its pairs carry it)."""
+    data, out = tmp_path / "data", tmp_path / "nr"
+    data.mkdir()
+    (out / "merged").mkdir(parents=True)
+    (data / "pairs.jsonl").write_text(json.dumps({"split": 2, "persona": "juan"}) + "\n")
+    (out / "train.json").write_text(json.dumps({"method": "no-reflection", "rows": 10}))
+    (out / "settings.json").write_text(json.dumps({"data": str(data), "model": "base"}))
+    rec = Resolver().resolve(_rec("planner", agent_config={"model": str(out / "merged")}), None)
+    assert (rec.agent, rec.split) == ("no-reflection", 2)
+    (out / "train.json").write_text(json.dumps({"method": "sft", "split": "1"}))
+    rec = Resolver().resolve(_rec("planner", agent_config={"model": str(out / "merged")}), None)
+    assert (rec.agent, rec.split) == ("no-dpo", 1)
+
+
 def test_tables_show_missing_rows_never_zero_and_the_paper_beside():
     recs = [_rec("never-ask-llm", rate=0.25, questions=0), _rec("never-ask", rate=0.5, questions=0),
             _rec("oracle", rate=1.0, questions=0), _rec("mine", rate=0.75)]

@@ -73,7 +73,7 @@ def tables(args, records: list, unseen) -> tuple:
     rows = table(records, unseen() if any(r.split is not None for r in records) else None, args.pass_k)
     lines = pt.notes(rows) + notes(rows) + mixed_models(records)
     return (rows, pt.render_text(rows, args.paper), lambda: pt.render_csv(rows),
-            lambda: pt.render_markdown(rows, args.paper), lines)
+            lambda: "\n\n".join([pt.render_markdown(rows, args.paper), *lines]), lines)
 
 
 def figures(args, records: list) -> None:

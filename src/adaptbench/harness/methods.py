@@ -4,8 +4,11 @@ numbers the paper published for them (`adapt eval --paper`).
 A record's METHOD (the label its row shows) is, first match wins:
 1. `--method NAME[@SPLIT]=FILE`: every record read from FILE is method NAME (evaluated on SPLIT);
 2. `agent_config["method"]`, when the rollout recorded one;
-3. the training provenance file of the model the record's agent ran (`agent_config["model"]`, a
-   directory): `training.json` there, `{"method": "dpo", "split": 1, ...}` (written by `adapt train`);
+3. the training provenance of the model the record's agent ran (`agent_config["model"]`, a directory,
+   as given to the rollout or relative to the results file's folder): `training.json` in it
+   (`{"method": "dpo", "split": 1}`, any trainer may write one), else `adapt train`'s output layout,
+   where the model is OUT/merged: OUT/train.json's `method`, and the split from OUT/train.json, else
+   OUT/settings.json, else the first pair of the training data (`settings["data"]/pairs.jsonl`);
 4. the agent's name (`planner`, `react`, `oracle`, ...).
 Training method names are normalised (`dpo` -> `reflection-dpo`, `sft` -> `no-dpo`, `stargate` ->
 `star-gate`, ...). A record without its own `split` takes the one given in 1 or found in 3.
@@ -23,6 +26,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 PROVENANCE = "training.json"  # in a trained model's directory: {"method": ..., "split": ..., ...}
+TRAIN_OUTPUTS = ("merged", "adapter")  # the model folders of `adapt train`'s OUT, beside OUT/train.json
 
 ALIASES = {"dpo": "reflection-dpo", "reflection_dpo": "reflection-dpo", "reflection-dpo": "reflection-dpo",
            "sft": "no-dpo", "no_dpo": "no-dpo", "no-dpo": "no-dpo", "star-gate": "star-gate",
@@ -83,19 +87,49 @@ def parse_mapping(items: list) -> dict:
     return out
 
 
+def _json(path: Path):
+    """The JSON object in `path`; MethodError when it is unreadable or not an object."""
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, ValueError) as exc:
+        raise MethodError(f"cannot read {path} ({exc})") from None
+    if not isinstance(data, dict):
+        raise MethodError(f"{path} is not a JSON object")
+    return data
+
+
+def _first_split(data_dir) -> int | None:
+    """The `split` of the first training pair in DATA/pairs.jsonl (every pair of a run has the same)."""
+    path = Path(str(data_dir)) / "pairs.jsonl"
+    try:
+        with path.open(encoding="utf-8") as f:
+            first = json.loads(f.readline() or "{}")
+    except (OSError, ValueError):
+        return None
+    return first.get("split") if isinstance(first, dict) else None
+
+
+def _adapt_train(out: Path) -> dict:
+    """The provenance of `adapt train`'s OUT (the model being OUT/merged): method and split."""
+    run = _json(out / "train.json")
+    split = run.get("split")
+    if split is None and (out / "settings.json").is_file():
+        settings = _json(out / "settings.json")
+        split = settings.get("split")
+        if split is None and settings.get("data"):
+            split = _first_split(settings["data"])
+    return {**run, "split": split}
+
+
 def read_provenance(model: str, bases: tuple = ()) -> dict:
-    """The training provenance of a model directory (`training.json`), looked up as given and relative to
-    `bases` (e.g. the results file's folder); {} when there is none. MethodError when it is unreadable."""
+    """The training provenance of a model directory (see the module doc), looked up as given and relative
+    to `bases` (e.g. the results file's folder); {} when there is none. MethodError when unreadable."""
     for base in (Path("."), *map(Path, bases)):
-        path = base / model / PROVENANCE
-        if path.is_file():
-            try:
-                data = json.loads(path.read_text())
-            except (OSError, ValueError) as exc:
-                raise MethodError(f"cannot read {path} ({exc})") from None
-            if not isinstance(data, dict):
-                raise MethodError(f"{path} is not a JSON object")
-            return data
+        path = base / model
+        if (path / PROVENANCE).is_file():
+            return _json(path / PROVENANCE)
+        if path.name in TRAIN_OUTPUTS and path.is_dir() and (path.parent / "train.json").is_file():
+            return _adapt_train(path.parent)
     return {}
 
 
@@ -124,14 +158,23 @@ class Resolver:
         prov = self.provenance(config.get("model"), str(Path(source).parent) if source else ".")
         if method is None and isinstance(prov.get("method"), str):
             method = method_name(prov["method"])
-        if split is None and isinstance(prov.get("split"), int) and not isinstance(prov.get("split"), bool):
-            split = prov["split"]
+        if split is None:
+            split = _as_split(prov.get("split"))
         changes = {}
         if method is not None and method != record.agent:
             changes["agent"] = method
         if record.split is None and split is not None:
             changes["split"] = split
         return replace(record, **changes) if changes else record
+
+
+def _as_split(value) -> int | None:
+    """A split id from provenance (a number, or its text as `adapt train data --split` takes it), else None."""
+    if isinstance(value, bool):
+        return None
+    if isinstance(value, int):
+        return value
+    return int(value) if isinstance(value, str) and value.strip().isdigit() else None
 
 
 def fill(rows_by_method: dict, table: tuple) -> list:
