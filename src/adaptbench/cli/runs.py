@@ -266,9 +266,10 @@ def add_commands(sub) -> None:
                                    "docs/evaluation.md).")
     p.add_argument("runs", nargs="*", help="JSONL files written by adapt rollout")
     p.add_argument("--spec", default=default_spec(), help="spec directory whose splits.yaml defines seen/unseen personas "
-                                                  "(read only for records with a `split`; default: spec)")
-    p.add_argument("--csv", help="also write the table as CSV")
-    p.add_argument("--markdown", help="also write the table as Markdown")
+                                                  "(read only for records with a `split`) and whose simulator replays "
+                                                  "episodes for --plot-temporal (default: spec)")
+    p.add_argument("--csv", help="also write the tables as CSV")
+    p.add_argument("--markdown", help="also write the tables as Markdown")
     p.add_argument("--plot", help="also draw satisfaction per agent and per persona (PNG, SVG or PDF by suffix; needs the plots extra)")
     p.add_argument("--by", choices=["task", "persona", "preference"],
                    help="break the results down per task, persona or preference instead of the seen/unseen table")
