@@ -244,6 +244,14 @@ def test_cli_eval_method_errors(tmp_path, capsys):
     assert "give results files" in capsys.readouterr().err
     assert main(["eval", "--method", f"dpo@7={f}"]) == 1
     assert "split 7" in capsys.readouterr().err
+    other = tmp_path / "other.jsonl"  # a record of another spec cannot be replayed: said, exit 1, no figure
+    other.write_text(json.dumps({"agent": "x", "persona": "juan", "task": "eggs", "seed": 0, "spec_hash": "other",
+                                 "satisfaction_rate": 1.0, "questions": 0, "satisfied": 1, "violated": 0,
+                                 "preferences": [{"id": "p", "verdict": "satisfied"}]}) + "\n")
+    assert main(["eval", str(other), "--plot-temporal", str(tmp_path / "t.png")]) == 1
+    err = capsys.readouterr().err
+    assert "1 episode(s) left out of the temporal figure: 1 spec differs from --spec" in err
+    assert "no episode could be replayed" in err and not (tmp_path / "t.png").exists()
     with pytest.raises(SystemExit) as exc:
         main(["eval", str(f), "--pass-k", "0"])
     assert exc.value.code == 2 and "each k must be at least 1" in capsys.readouterr().err

@@ -81,6 +81,9 @@ def figures(args, records: list) -> None:
     from ..errors import AdaptError
     from ..harness import plots
 
+    if not (args.plot_temporal or args.plot_questions):
+        return
+    plots.require()  # PlotsUnavailable before any replay
     try:
         if args.plot_temporal:
             plots.draw_temporal(_curves(args, records), Path(args.plot_temporal))

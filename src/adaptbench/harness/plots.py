@@ -32,6 +32,11 @@ def _pyplot():
     return plt
 
 
+def require() -> None:
+    """PlotsUnavailable (how to install matplotlib) when the plots extra is missing."""
+    _pyplot()
+
+
 def _bars(ax, rows: list) -> None:
     agents = [r["agent"] for r in rows]
     width = 0.38
