@@ -1,7 +1,7 @@
 """A small OpenAI-compatible completions server over the tiny model, for testing the `openai` backend
 (standard library http.server in a thread). It takes token-id prompts, vLLM's
 `structured_outputs: {"grammar": ...}` (ignored when `enforce` is False, like a server without
-grammar support) and `echo` + `logprobs` for prompt log-probabilities."""
+grammar support), `echo` + `logprobs` for prompt log-probabilities and vLLM's `return_token_ids`."""
 
 from __future__ import annotations
 
@@ -38,6 +38,8 @@ def serve(backend, enforce: bool = True):
                     c = backend.generate([Request(text, grammar, tuple(body.get("stop") or ()),
                                                   body.get("max_tokens", 16))])[0]
                     out = {"choices": [{"text": c.text}], "usage": {"completion_tokens": c.tokens}}
+                    if body.get("return_token_ids"):  # vLLM's field: the generated ids, EOS included
+                        out["choices"][0]["token_ids"] = list(c.token_ids)
             data = json.dumps(out).encode()
             self.send_response(200)
             self.send_header("Content-Type", "application/json")

@@ -250,11 +250,11 @@ def test_a_rollout_raises_no_deprecation_warning_from_transformers(domain, tiny,
     import json
     import warnings
 
+    from adaptbench.agents.users import OfflineUser
     from adaptbench.harness.batches import rollout_policy
     from adaptbench.harness.rollout import Job
     from adaptbench.llm.hf import TransformersBackend
     from adaptbench.llm.policies import LLMPolicy
-    from adaptbench.agents.users import OfflineUser
 
     backend = TransformersBackend(str(tiny))
     backend.loop = loop

@@ -40,7 +40,9 @@ def _direct(model, tok, prompt: str, action: str) -> float:
     import torch
 
     p = tok(prompt, add_special_tokens=False)["input_ids"]
-    a = tok(action, add_special_tokens=False)["input_ids"]
+    from adaptbench.llm.chat import end_token
+
+    a = action if isinstance(action, list) else tok(action, add_special_tokens=False)["input_ids"] + [end_token(tok)]
     with torch.no_grad():
         logits = model(input_ids=torch.tensor([p + a])).logits[0].float()
     logp = torch.log_softmax(logits, -1)
@@ -71,6 +73,10 @@ def test_delta_batched_equals_direct_forward(backend, domain):
     assert probs.p_teacher == pytest.approx(_direct(model, tok, x, teacher), abs=1e-5)
     assert probs.p_student == pytest.approx(_direct(model, tok, x, own), abs=1e-5)
     assert probs.p_teacher_given_answer == pytest.approx(_direct(model, tok, xq, teacher), abs=1e-5)
+    generated = d.stats["token_ids"]  # on-policy: the student's own action is scored on the ids it generated
+    on_policy = step_probabilities(backend, x, xq, teacher, d.action, generated)
+    assert on_policy.p_student == pytest.approx(_direct(model, tok, x, generated), abs=1e-5)
+    assert on_policy.p_teacher == probs.p_teacher
 
 
 @SKIP_MODELS

@@ -172,4 +172,6 @@ class LLMPolicy(Policy):
                  "prepare_seconds": round(prep, 4), **out.stats}
         if thought:
             stats["thought"] = thought
+        if out.token_ids is not None:  # what the model generated (after the healed prompt: stats["healed"])
+            stats["token_ids"] = list(out.token_ids)
         return Decision(out.text, None, out.text, stats)
