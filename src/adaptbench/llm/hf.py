@@ -201,17 +201,17 @@ class TransformersBackend(Backend):
         return dtype or str(self.model.dtype).removeprefix("torch.")
 
     def _scorer(self, dtype: str | None):
-        """The model to score with: this one, or for another `dtype` a copy in that precision (made once
-        and kept: a float32 copy of a bfloat16 model takes twice its memory)."""
+        """The model to score with: this one, or for another `dtype` the model directory loaded again in
+        that precision (the checkpoint's weights, not this model's rounded ones; loaded once and kept: a
+        float32 copy beside a bfloat16 model takes twice its memory)."""
         if dtype is None or DTYPES.get(dtype, dtype) == self.model.dtype:
             return self.model
         if dtype not in DTYPES or dtype == "auto":
             raise ValueError(f"unknown scoring dtype '{dtype}' (choose from: float32, bfloat16, float16)")
         kept = self._copy
         if kept is None or kept.dtype != DTYPES[dtype]:
-            import copy
-
-            kept = self._copy = copy.deepcopy(self.model).to(DTYPES[dtype])
+            kept = self._copy = AutoModelForCausalLM.from_pretrained(self.path, dtype=DTYPES[dtype]).to(
+                self.device).eval()
         return kept
 
     @torch.no_grad()
