@@ -127,6 +127,26 @@ def test_resume_after_kill_and_provenance(tiny, tmp_path):
         assert r["rejected"][0]["role"] == "assistant" and r["prompt"][0]["role"] == "system"
     summary = json.loads((out / "summary.json").read_text())
     assert summary["pairs"] == len(rows) and "steps:" in done.stdout
+    _check_rejected_ids(tiny, rows, summary)
+
+
+def _check_rejected_ids(tiny, rows, summary):
+    """Every row keeps the student's generated ids for its rejected answer, laid out as a DPO trainer cuts
+    a completion after the prompt's generation prompt, and the summary counts them and the score dtype."""
+    from transformers import AutoTokenizer
+
+    tok = AutoTokenizer.from_pretrained(tiny)
+    for r in rows:
+        ids = r["rejected_token_ids"]
+        assert ids and isinstance(r["rejected_canonical"], bool)
+        opening = tok.apply_chat_template(r["prompt"], tokenize=False, add_generation_prompt=True)
+        turn = tok.apply_chat_template(r["prompt"] + r["rejected"], tokenize=False)[len(opening):]
+        assert tok.decode(ids) == turn  # the same text, in the ids the student took
+        assert r["rejected_canonical"] == (ids == tok(turn, add_special_tokens=False)["input_ids"])
+    counts = summary["rejected_ids"]
+    assert counts["canonical"] + counts["non_canonical"] == len(rows) and counts["unknown"] == 0
+    scored = [r for r in rows if r["p_student"] is not None]
+    assert all(r["score_dtype"] == "float32" for r in scored) and summary["score_dtypes"] == (["float32"] if scored else [])
 
 
 def test_store_drops_torn_line_and_summarises(tmp_path):
