@@ -89,13 +89,13 @@ class TransformersBackend(Backend):
         self.vocab = self.model.get_output_embeddings().weight.shape[0]
         self.lltok = ll_tokenizer(self.tokenizer, self.vocab)
         self.matchers = Matchers(self.lltok)
+        self._copy = None  # the model in another precision, for `score(..., dtype)`
         self.pad_id = self.tokenizer.pad_token_id if self.tokenizer.pad_token_id is not None \
             else self.tokenizer.eos_token_id
         self.loop = loop_supported(self.model)
         self.prefill_together = device != "cpu"  # see decode.prefill_rows
         self.sessions = Sessions(2 * batch_size if sessions is None else sessions)
         self._generator = torch.Generator(device=device).manual_seed(seed)
-        self._copy = None  # the model in another precision, for `score(..., dtype)`
 
     def config(self) -> dict:
         """The model directory, device, dtype and sampling temperature."""
