@@ -223,6 +223,8 @@ class TransformersBackend(Backend):
         model = self._scorer(dtype)
         p = self.encode(prompt)
         conts = [continuation_ids(self.tokenizer, c) for c in continuations]
+        if not conts:
+            return []
         first, layers = read_prompt(model, p)
         out = []
         for i in range(0, len(conts), self.batch_size):
