@@ -30,18 +30,21 @@ def add_rollout_options(p) -> None:
     g.add_argument("--user-model", help="model directory of the LLM user (default: --model)")
 
 
-def add_sampling_options(g) -> None:
+RECORDED = "; recorded with each episode: a run with another sample seed into the same --out adds its episodes"
+
+
+def add_sampling_options(g, recorded: str = RECORDED) -> None:
     """`--temperature` and `--sample-seed`, for every command in which a model samples (docs/llm.md,
     *Sampling and reproducibility*). Not `--seed`: argparse would take it for `--seeds`, the scene seeds."""
     from .argtypes import seed, temperature
 
     g.add_argument("--temperature", type=temperature, default=0.0,
-                   help="sampling temperature of the model's generations (default 0: greedy)")
+                   help="sampling temperature of the model's actions and questions (default 0: greedy; an LLM "
+                   "user always answers greedily)")
     g.add_argument("--sample-seed", type=seed, default=0,
                    help="seed of the sampling (default 0; used above temperature 0): each episode draws from its "
-                   "own generator, derived from this seed and the episode (agent, persona, task, scene seed), "
-                   "so its samples do not depend on --batch, --workers or order. Recorded with each episode: "
-                   "a run with another sample seed into the same --out adds its episodes")
+                   "own generator, derived from this seed and the episode (agent, persona, task, scene seed) and "
+                   "step, so its samples do not depend on --batch, --workers or order" + recorded)
 
 
 def _fail(msg: str, code: int = 2):
