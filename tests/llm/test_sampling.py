@@ -147,3 +147,25 @@ def test_an_episode_samples_the_same_alone_in_a_batch_and_in_workers_and_another
     assert ev.returncode == 0, ev.stderr
     assert "planner: 2 episodes sampled at temperature 1 under 2 sample seeds (0, 1)" in ev.stdout
     assert "prompts over the token budget (with every older step left out): 6 step(s) in 2 of 2" in ev.stdout
+
+
+def test_rows_are_drawn_from_their_softmax_each_with_its_own_generator():
+    import collections
+
+    import torch
+
+    from adaptbench.llm.sampling import RowSampler, generator
+
+    logits = torch.tensor([[0.0, 1.0, float("-inf"), 2.0], [0.0, 1.0, float("-inf"), 2.0], [float("-inf")] * 4])
+    sampler = RowSampler([1.0, 0.0, 1.0], [generator(0), None, generator(1)])
+    counts = collections.Counter()
+    for _ in range(4000):
+        row = sampler.pick(logits).tolist()
+        assert row[1:] == [3, 0]  # greedy row: argmax; no token allowed: the fallback, never a masked one
+        counts[row[0]] += 1
+    assert counts[2] == 0
+    for token, p in zip((0, 1, 3), torch.softmax(logits[0], -1)[[0, 1, 3]].tolist(), strict=True):
+        assert abs(counts[token] / 4000 - p) < 0.03
+    x = torch.randn(8, 512)
+    batch = RowSampler([1.0] * 8, [generator(i) for i in range(8)]).pick(x)
+    assert [RowSampler([1.0], [generator(i)]).pick(x[i:i + 1])[0] for i in range(8)] == batch.tolist()

@@ -13,8 +13,8 @@ depend on what they were batched with.
   one request sampled twice gives two samples, and a run repeats under the same sample seed.
 - A row at temperature 0 takes the most likely allowed token (greedy) and draws nothing.
 
-Every row is sampled on its own (`torch.multinomial` of that row's softmax at its temperature, with its
-generator), on both generation paths: the backend's own loop (`decode.Picker`) and `model.generate`
+Every row is sampled on its own (one uniform number from its generator, inverted through the cumulative
+distribution of its softmax at its temperature: `draw`), on both generation paths: the backend's own loop (`decode.Picker`) and `model.generate`
 (`SampleProcessor`, a logits processor that draws each row's token and leaves only it allowed, so that
 generate's greedy step takes it). The two paths draw at different points (the loop takes a token the
 grammar forces without drawing), so one seed gives different samples on the two paths.
@@ -48,25 +48,29 @@ class RowSampler:
 
     def pick(self, logits: torch.Tensor, rows=None) -> torch.Tensor:
         """The token of each logits row (`rows[k]`: the request row of logits row k; default 0..B-1)."""
-        rows = range(logits.shape[0]) if rows is None else rows
+        rows = list(range(logits.shape[0]) if rows is None else rows)
         best = logits.argmax(dim=-1)
-        if self.greedy:
+        sampled = [k for k, i in enumerate(rows) if self.temperatures[i] > 0]
+        if not sampled:
             return best
         out = best.clone()
-        for k, i in enumerate(rows):
-            t = self.temperatures[i]
-            if t > 0:
-                out[k] = draw(logits[k], t, self.generators[i])
+        at = torch.tensor(sampled, dtype=torch.long, device=logits.device)
+        temps = torch.tensor([self.temperatures[rows[k]] for k in sampled], device=logits.device).unsqueeze(1)
+        out[at] = draw(logits[at], temps, [self.generators[rows[k]] for k in sampled], best[at])
         return out
 
 
-def draw(logits: torch.Tensor, temperature: float, gen: torch.Generator) -> torch.Tensor:
-    """One token drawn from softmax(logits / temperature) with `gen` (the most likely token when no
-    token is allowed at all: every logit -inf)."""
-    probs = torch.softmax(logits.float() / temperature, dim=-1)
-    if not bool(torch.isfinite(probs).all()):
-        return logits.argmax()
-    return torch.multinomial(probs, 1, generator=gen)[0]
+def draw(logits: torch.Tensor, temperatures: torch.Tensor, generators: list, fallback: torch.Tensor) -> torch.Tensor:
+    """One token per row drawn from softmax(logits / temperature) by inverting the row's cumulative
+    distribution (float64) at one uniform number from the row's own generator: an exact categorical draw,
+    the row's alone whatever else is in the batch, and faster on the CPU than one batched
+    `torch.multinomial` (bench/bench_sampling.py, 16 rows: 0.27x its time at a vocabulary of 4,096,
+    0.69x at 49,152). A row with no allowed token (every logit -inf) takes `fallback`."""
+    cdf = torch.softmax(logits.float() / temperatures, dim=-1).double().cumsum(dim=-1)
+    u = torch.cat([torch.rand(1, generator=g, dtype=torch.float64, device=g.device) for g in generators])
+    picked = torch.searchsorted(cdf, (u.to(cdf.device) * cdf[:, -1]).unsqueeze(1), right=True)[:, 0]
+    picked = picked.clamp(max=logits.shape[1] - 1)  # a token of probability 0 is never picked: its cdf step is flat
+    return torch.where(torch.isfinite(cdf[:, -1]), picked, fallback)
 
 
 class SampleProcessor(LogitsProcessor):
