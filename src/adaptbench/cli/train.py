@@ -98,9 +98,12 @@ def add_data(train_sub) -> None:
 
 def add_commands(sub) -> None:
     """Build the `train` group with `data` and every registrar's subcommands."""
-    p = sub.add_parser("train", help="train agents (data, ...)", description="Build training data and train agents.")
+    p = sub.add_parser("train", help="train agents (data, dpo, sft, no-reflection, star-gate, ...)", description="Build training data and train agents.")
     train_sub = p.add_subparsers(dest="train_command", metavar="COMMAND")
     add_data(train_sub)
+    from .train_methods import add_methods
+
+    add_methods(train_sub)
     for registrar in REGISTRARS:
         registrar(train_sub)
     p.set_defaults(func=lambda args: (p.print_help(), 2)[1])

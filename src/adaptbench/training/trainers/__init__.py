@@ -1,0 +1,62 @@
+"""`adapt train dpo|sft|no-reflection|star-gate`: Reflection-DPO, its "no DPO" and "no Reflection" ablations
+and the STaR-GATE baseline, with TRL and a LoRA adapter (peft). See docs/training.md.
+
+    from adaptbench.training.trainers import METHODS, train
+    s = load_settings(METHODS["dpo"], {"data": "runs/data", "model": "models/tiny", "out": "runs/dpo"})
+    result = train("dpo", s)            # OUT/adapter, OUT/merged (a model directory), OUT/train.json
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from .config import DPOSettings, NoReflectionSettings, SFTSettings, StarGateSettings
+
+METHODS = {"dpo": DPOSettings, "sft": SFTSettings, "no-reflection": NoReflectionSettings,
+           "star-gate": StarGateSettings}
+
+
+def train(method: str, s, spec=None, log=None) -> dict:
+    """Train `method` with settings `s` (resuming from OUT's last checkpoint); returns train.json's content."""
+    import time
+
+    from . import engine
+    from .run import check_resume, last_checkpoint, load_tokenizer, prepare, report_long
+
+    log = log or engine.stderr
+    out = Path(s.out)
+    out.mkdir(parents=True, exist_ok=True)
+    if s.threads:
+        import torch
+
+        torch.set_num_threads(s.threads)
+    tok = load_tokenizer(s.model)
+    p = prepare(method, s, tok, spec)
+    note = report_long(p, s, out)
+    if note:
+        log(f"adapt: {note}")
+    check_resume(s, out)
+    resume = last_checkpoint(out)
+    t0 = time.perf_counter()
+    trainer = engine.build(method, s, p.rows, tok, out, log)
+    setup = time.perf_counter() - t0
+    pre = bool(getattr(trainer.args, "precompute_ref_log_probs", False))
+    log(f"train {method}: {len(p.rows)} rows, {trainer.args.max_steps if trainer.args.max_steps > 0 else 'one epoch of'} "
+        f"steps at batch {s.batch}" + (f", resuming from {resume}" if resume else "")
+        + (f"; reference log-probs precomputed ({setup:.1f} s with loading)" if pre else ""))
+    timing = engine.fit(trainer, resume, log)
+    result = {"method": method, "rows": len(p.rows), "long_rows_left_out": len(p.long), **p.left_out,
+              "rows_truncated_left": sum(r.truncated for r in p.rows),
+              "rows_with_generated_rejected_ids": sum(r.generated_rejected for r in p.rows),
+              "steps": trainer.state.global_step, "precomputed_reference": pre, "setup_seconds": round(setup, 2),
+              **timing, **engine.summary_of(trainer)}
+    if trainer.accelerator.is_main_process:
+        trainer.save_model(str(out / "adapter"))
+        tok.save_pretrained(str(out / "adapter"))
+        engine.merge(s.model, out / "adapter", out / "merged", tok)
+        (out / "train.json").write_text(json.dumps(result, indent=2) + "\n")
+    return result
+
+
+__all__ = ["METHODS", "DPOSettings", "NoReflectionSettings", "SFTSettings", "StarGateSettings", "train"]
