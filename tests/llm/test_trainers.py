@@ -14,7 +14,12 @@ import time
 
 import pytest
 
-from adaptbench.training.trainers.config import DPOSettings, NoReflectionSettings, SettingsError, load_settings
+from adaptbench.training.trainers.config import (
+    DPOSettings,
+    NoReflectionSettings,
+    SettingsError,
+    load_settings,
+)
 
 from .conftest import SKIP_MODELS, play
 

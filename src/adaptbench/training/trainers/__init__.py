@@ -38,9 +38,9 @@ def train(method: str, s, spec=None, log=None) -> dict:
         log(f"adapt: {note}")
     check_resume(s, out)
     resume = last_checkpoint(out)
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     trainer = engine.build(method, s, p.rows, tok, out, log)
-    setup = time.perf_counter() - t0
+    setup, setup_cpu = time.perf_counter() - t0, time.process_time() - c0
     pre = bool(getattr(trainer.args, "precompute_ref_log_probs", False))
     log(f"train {method}: {len(p.rows)} rows, {trainer.args.max_steps if trainer.args.max_steps > 0 else 'one epoch of'} "
         f"steps at batch {s.batch}" + (f", resuming from {resume}" if resume else "")
@@ -50,6 +50,7 @@ def train(method: str, s, spec=None, log=None) -> dict:
               "rows_truncated_left": sum(r.truncated for r in p.rows),
               "rows_with_generated_rejected_ids": sum(r.generated_rejected for r in p.rows),
               "steps": trainer.state.global_step, "precomputed_reference": pre, "setup_seconds": round(setup, 2),
+              "setup_cpu_seconds": round(setup_cpu, 2),
               **timing, **engine.summary_of(trainer)}
     if trainer.accelerator.is_main_process:
         trainer.save_model(str(out / "adapter"))
