@@ -22,7 +22,7 @@ def train(method: str, s, spec=None, log=None) -> dict:
     import time
 
     from . import engine
-    from .run import check_resume, last_checkpoint, load_tokenizer, prepare, report_long
+    from .run import check_resume, last_checkpoint, load_tokenizer, prepare, report_long, write_settings
 
     log = log or engine.stderr
     out = Path(s.out)
@@ -41,6 +41,8 @@ def train(method: str, s, spec=None, log=None) -> dict:
     t0, c0 = time.perf_counter(), time.process_time()
     trainer = engine.build(method, s, p.rows, tok, out, log)
     setup, setup_cpu = time.perf_counter() - t0, time.process_time() - c0
+    if trainer.accelerator.is_main_process:
+        write_settings(s, out)
     pre = bool(getattr(trainer.args, "precompute_ref_log_probs", False))
     log(f"train {method}: {len(p.rows)} rows, {trainer.args.max_steps if trainer.args.max_steps > 0 else 'one epoch of'} "
         f"steps at batch {s.batch}" + (f", resuming from {resume}" if resume else "")

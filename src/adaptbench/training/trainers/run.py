@@ -95,7 +95,7 @@ def report_long(p: Prepared, s, out: Path) -> str | None:
 
 
 def check_resume(s, out: Path) -> None:
-    """Write OUT/settings.json, or refuse to go on with a run whose settings differ (but for RESUMABLE)."""
+    """Refuse to go on with a run in OUT whose settings differ (but for RESUMABLE)."""
     path = out / "settings.json"
     now = as_dict(s)
     if path.is_file():
@@ -105,7 +105,11 @@ def check_resume(s, out: Path) -> None:
             changes = ", ".join(f"{k} {before.get(k)} -> {now[k]}" for k in diff)
             raise TrainError(f"--out {out} holds a run with other settings ({changes}); use another --out or "
                              "the same settings to resume")
-    path.write_text(json.dumps(now, indent=2) + "\n")
+
+
+def write_settings(s, out: Path) -> None:
+    """OUT/settings.json (once the trainer is built: settings it refused are not recorded)."""
+    (out / "settings.json").write_text(json.dumps(as_dict(s), indent=2) + "\n")
 
 
 def last_checkpoint(out: Path) -> str | None:
