@@ -19,6 +19,7 @@ METHODS = {"dpo": DPOSettings, "sft": SFTSettings, "no-reflection": NoReflection
 
 def train(method: str, s, spec=None, log=None) -> dict:
     """Train `method` with settings `s` (resuming from OUT's last checkpoint); returns train.json's content."""
+    import math
     import time
 
     from . import engine
@@ -44,22 +45,26 @@ def train(method: str, s, spec=None, log=None) -> dict:
     if trainer.accelerator.is_main_process:
         write_settings(s, out)
     pre = bool(getattr(trainer.args, "precompute_ref_log_probs", False))
-    log(f"train {method}: {len(p.rows)} rows, {trainer.args.max_steps if trainer.args.max_steps > 0 else 'one epoch of'} "
-        f"steps at batch {s.batch}" + (f", resuming from {resume}" if resume else "")
+    planned = s.max_steps or math.ceil(s.epochs * engine.steps_per_epoch(s, len(p.rows)))
+    log(f"train {method}: {len(p.rows)} rows, {planned} steps at batch {s.batch}"
+        + (f", resuming from {resume}" if resume else "")
         + (f"; reference log-probs precomputed ({setup:.1f} s with loading)" if pre else ""))
     timing = engine.fit(trainer, resume, log)
-    result = {"method": method, "rows": len(p.rows), "long_rows_left_out": len(p.long), **p.left_out,
-              "rows_truncated_left": sum(r.truncated for r in p.rows),
-              "rows_with_generated_rejected_ids": sum(r.generated_rejected for r in p.rows),
-              "steps": trainer.state.global_step, "precomputed_reference": pre, "setup_seconds": round(setup, 2),
-              "setup_cpu_seconds": round(setup_cpu, 2),
-              **timing, **engine.summary_of(trainer)}
+    result = {"method": method, **_counts(p), "steps": trainer.state.global_step, "precomputed_reference": pre,
+              "setup_seconds": round(setup, 2), "setup_cpu_seconds": round(setup_cpu, 2), **timing,
+              **engine.summary_of(trainer)}
+    trainer.save_model(str(out / "adapter"))  # every process (DeepSpeed/FSDP gather); the main one writes
     if trainer.accelerator.is_main_process:
-        trainer.save_model(str(out / "adapter"))
         tok.save_pretrained(str(out / "adapter"))
         engine.merge(s.model, out / "adapter", out / "merged", tok)
         (out / "train.json").write_text(json.dumps(result, indent=2) + "\n")
     return result
+
+
+def _counts(p) -> dict:
+    return {"rows": len(p.rows), "long_rows_left_out": len(p.long), **p.left_out,
+            "rows_truncated_left": sum(r.truncated for r in p.rows),
+            "rows_with_generated_rejected_ids": sum(r.generated_rejected for r in p.rows)}
 
 
 __all__ = ["METHODS", "DPOSettings", "NoReflectionSettings", "SFTSettings", "StarGateSettings", "train"]

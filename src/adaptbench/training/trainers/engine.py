@@ -93,36 +93,35 @@ def _dpo_class():
     return TokenizedDPOTrainer
 
 
-class Progress:
-    """A transformers callback: a line per logged step on stderr (step, loss, reward margin, time left) and
-    OUT/log.jsonl."""
+def progress_callback(out: Path, log):
+    """A transformers callback: a line per logged step through `log` (step, loss, reward margin and accuracy,
+    time left) and a JSON line in OUT/log.jsonl (main process only)."""
+    from transformers import TrainerCallback
 
-    def __new__(cls, out: Path, log):
-        from transformers import TrainerCallback
+    class Progress(TrainerCallback):
+        def __init__(self):
+            self.t0, self.first = time.perf_counter(), 0
 
-        class _Progress(TrainerCallback):
-            def __init__(self):
-                self.t0, self.first = time.perf_counter(), None
+        def on_train_begin(self, args, state, control, **kw):
+            self.first, self.t0 = state.global_step, time.perf_counter()
 
-            def on_train_begin(self, args, state, control, **kw):
-                self.first = state.global_step
-                self.t0 = time.perf_counter()
+        def on_log(self, args, state, control, logs=None, **kw):
+            logs = logs or {}
+            if not state.is_world_process_zero:
+                return
+            with (out / "log.jsonl").open("a", encoding="utf-8") as f:
+                f.write(json.dumps({"step": state.global_step, **logs}) + "\n")
+            if "loss" in logs:
+                log(_line(state, logs, self.first, time.perf_counter() - self.t0))
 
-            def on_log(self, args, state, control, logs=None, **kw):
-                logs = logs or {}
-                if not state.is_world_process_zero:
-                    return
-                with (out / "log.jsonl").open("a", encoding="utf-8") as f:
-                    f.write(json.dumps({"step": state.global_step, **logs}) + "\n")
-                if "loss" not in logs:
-                    return
-                done = state.global_step - (self.first or 0)
-                spent = time.perf_counter() - self.t0
-                left = spent / done * (state.max_steps - state.global_step) if done else 0.0
-                shown = " ".join(f"{k.split('/')[-1]} {logs[k]:.4g}" for k in METRICS[:3] if k in logs)
-                log(f"step {state.global_step}/{state.max_steps} {shown} ({spent:.0f} s, ~{left:.0f} s left)")
+    return Progress()
 
-        return _Progress()
+
+def _line(state, logs: dict, first: int, spent: float) -> str:
+    done = state.global_step - first
+    left = spent / done * (state.max_steps - state.global_step) if done else 0.0
+    shown = " ".join(f"{k.split('/')[-1]} {logs[k]:.4g}" for k in METRICS[:3] if k in logs)
+    return f"step {state.global_step}/{state.max_steps} {shown} ({spent:.0f} s, ~{left:.0f} s left)"
 
 
 def build(method: str, s, rows: list, tokenizer, out: Path, log):
@@ -144,7 +143,7 @@ def _build(method: str, s, rows: list, tokenizer, out: Path, log):
 
     model = load_model(s)
     common = trainer_args(s, out, len(rows))
-    callbacks = [Progress(out, log)]
+    callbacks = [progress_callback(out, log)]
     try:
         if isinstance(s, DPOSettings):
             from trl import DPOConfig
