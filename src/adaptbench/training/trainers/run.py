@@ -20,7 +20,7 @@ from ...errors import AdaptError
 from .config import as_dict
 from .encode import Encoder, check_lengths, key_text
 
-RESUMABLE = ("max_steps", "epochs", "save_steps", "logging_steps", "threads", "long_rows", "data", "model", "out")
+RESUMABLE = ("max_steps", "epochs", "save_steps", "logging_steps", "threads", "long_rows", "out")
 
 
 class TrainError(AdaptError):
@@ -94,10 +94,15 @@ def report_long(p: Prepared, s, out: Path) -> str | None:
     return f"{head}: left out (--long-rows skip), listed in {out / 'long_rows.jsonl'}"
 
 
+def _recorded(s) -> dict:
+    """The settings as settings.json records them (the data and model as absolute paths)."""
+    return {**as_dict(s), "data": str(Path(s.data).resolve()), "model": str(Path(s.model).resolve())}
+
+
 def check_resume(s, out: Path) -> None:
     """Refuse to go on with a run in OUT whose settings differ (but for RESUMABLE)."""
     path = out / "settings.json"
-    now = as_dict(s)
+    now = _recorded(s)
     if path.is_file():
         before = json.loads(path.read_text())
         diff = sorted(k for k in now if k not in RESUMABLE and before.get(k) != now[k])
@@ -109,7 +114,7 @@ def check_resume(s, out: Path) -> None:
 
 def write_settings(s, out: Path) -> None:
     """OUT/settings.json (once the trainer is built: settings it refused are not recorded)."""
-    (out / "settings.json").write_text(json.dumps(as_dict(s), indent=2) + "\n")
+    (out / "settings.json").write_text(json.dumps(_recorded(s), indent=2) + "\n")
 
 
 def last_checkpoint(out: Path) -> str | None:
