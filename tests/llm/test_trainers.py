@@ -108,17 +108,22 @@ def test_rows_are_the_planner_s_tokens_and_methods_pick_their_rows(backend):
     enc = Encoder(tok)
     d = dpo_rows(rows, enc)
     assert [r.key[-1] for r in d] == [0, 1]
-    prompt_text = render(tok, Prompt(tuple(rows[0]["prompt"]), "Action: "))
-    assert list(d[0].prompt) == backend.encode(prompt_text)  # what the backend feeds the model when it plays
-    assert tok.decode(d[1].chosen) == 'Ask "Cheese?"' + tok.eos_token and d[1].chosen[-1] == tok.eos_token_id
-    assert tok.decode(d[0].rejected) == "Look for eggs" + tok.eos_token
+    messages = tuple(rows[0]["prompt"])
+    assert list(d[0].prompt) == backend.encode(render(tok, Prompt(messages, "")))  # TRL's layout: the template's
+    full = tok.apply_chat_template([*messages, {"role": "assistant", "content": "Action: Look for pan"}], tokenize=False)
+    assert list(d[0].prompt + d[0].chosen) == tok(full, add_special_tokens=False)["input_ids"]
+    played = backend.encode(render(tok, Prompt(messages, "Action: "))) + tok("Look for pan", add_special_tokens=False)["input_ids"]
+    assert list(d[0].prompt + d[0].chosen)[:len(played)] == played  # what the planner reads and writes, then its end
+    assert tok.decode(d[1].chosen) == 'Action: Ask "Cheese?"<|end|>\n' and tok.eos_token_id in d[1].chosen
+    assert tok.decode(d[0].rejected) == "Action: Look for eggs<|end|>\n"
     assert [r.key[-1] for r in sft_rows(rows, enc)] == [0, 1] and sft_rows(rows, enc)[0].rejected is None
     nr = no_reflection_rows(rows, enc)
     assert [r.key[-1] for r in nr] == [0, 1, 2]  # the question row trains a^t, the no_gain step too
-    assert {tok.decode(r.chosen) for r in nr} == {"Look for pan" + tok.eos_token}
+    assert {tok.decode(r.chosen) for r in nr} == {"Action: Look for pan<|end|>\n"}
     assert [r.key[-1] for r in no_reflection_rows(rows, enc, no_gain=False)] == [0, 1]
-    generated = dict(rows[0], rejected_ids=[5, 6, tok.eos_token_id])  # the student's own ids are kept as they are
-    assert dpo_rows([generated], enc)[0].rejected == (5, 6, tok.eos_token_id)
+    generated = dict(rows[0], rejected_token_ids=[5, 6, tok.eos_token_id])  # the student's own ids, as they are
+    got = dpo_rows([generated], enc)[0]
+    assert got.rejected == (5, 6, tok.eos_token_id) and got.generated_rejected and got.chosen == d[0].chosen
 
 
 @SKIP_MODELS
@@ -143,6 +148,8 @@ def test_long_row_is_reported_never_dropped(backend, tmp_path):
 
 @SKIP_MODELS
 def test_stargate_prompts_are_the_planner_s(domain, backend):
+    from dataclasses import replace
+
     from adaptbench.agents.scripted import OraclePolicy
     from adaptbench.llm.chat import render
     from adaptbench.training.relabel import student_policy
@@ -164,8 +171,8 @@ def test_stargate_prompts_are_the_planner_s(domain, backend):
     rows, bad = stargate_rows(domain, [record], Encoder(backend.tokenizer), 4096)
     assert bad == 0 and len(rows) == 6
     for row, prompt, step in zip(rows, prompts, steps, strict=True):
-        assert list(row.prompt) == backend.encode(render(backend.tokenizer, prompt))
-        assert backend.tokenizer.decode(row.chosen) == step["action"] + backend.tokenizer.eos_token
+        assert list(row.prompt) == backend.encode(render(backend.tokenizer, replace(prompt, prefix="")))
+        assert backend.tokenizer.decode(row.chosen) == f"Action: {step['action']}<|end|>\n"
     assert any(p.omitted for p in prompts)  # the budget cut old steps, and the rebuild cut the same ones
     tampered = dict(record, steps=[dict(steps[0], observation="no")] + steps[1:])
     assert stargate_rows(domain, [tampered], Encoder(backend.tokenizer), 4096) == ([], 1)

@@ -1,17 +1,20 @@
-"""Rows as token ids, exactly as the planner reads and writes them, and every row's length checked.
+"""Rows as token ids, laid out as TRL lays out a conversational row, and every row's length checked.
 
     enc = Encoder(tokenizer)
-    ids = enc.prompt(messages)                     # the rendered prompt's ids (chat template + "Action:")
-    done = enc.completion(ids, "Look for eggs")    # the action's ids and the end token
+    prompt, (chosen, rejected) = enc.row(messages, "Look for pan", "Look for eggs")
     kept, long = check_lengths(rows, 1024)         # no row is cut or dropped without being reported
 
-The trainers hand TRL pre-tokenized rows (TRL 1.x re-tokenizes text rows through the chat template, drops
-a row whose prompt alone reaches `max_length` and cuts the end of the others, silently). Here the prompt is
-`chat.render` of the row's messages with the planner's `Action: ` prefix, healed like generation
-(`boundary.split_tail`: trailing spaces a tokenizer merges into the next word move to the completion), and
-the completion is the action's tokens then the end-of-sequence token the model stops at: the model is
-trained on the very tokens it reads and writes when it plays. A rejected completion given as the ids the
-student generated (`rejected_ids`) is taken as it is.
+The trainers hand TRL rows already in ids (TRL 1.x re-tokenizes text rows, drops a row whose prompt alone
+reaches `max_length` and cuts the end of the others, silently). The layout is TRL's own for a conversational
+row: the prompt is the chat template with the generation prompt (`chat.render`, no prefix), and a completion
+is everything the template writes for the assistant turn `Action: <text>`: the prefix, the action, the
+template's end of turn (e.g. `<|im_end|>` and its newline). That is the layout `adapt train data` gives the
+ids the student generated (`rejected_token_ids`, docs/training-data.md), which are then taken as they are.
+Prompt plus completion is the template's tokenization of the whole conversation, and the sequence the model
+reads and writes when it plays (the healed `...Action:` prompt, then the action) is its prefix
+(`tests/llm/test_trainers.py`). For a chat template that renders the prompt differently once an answer
+follows it, the row falls back to the generation layout: the prompt rendered with the `Action: ` prefix and
+healed as generation heals it (`boundary.split_tail`), the completion the action's ids and the end token.
 """
 
 from __future__ import annotations
@@ -23,14 +26,6 @@ from ...llm.chat import encode, render
 from ...llm.prompts import ACTION_PREFIX, Prompt
 
 IGNORE = -100  # label of a token the SFT loss skips
-
-
-@dataclass(frozen=True)
-class PromptIds:
-    """A rendered prompt's ids and the trailing spaces moved into its completions (`tail`)."""
-
-    ids: tuple
-    tail: str = ""
 
 
 @dataclass(frozen=True)
@@ -68,17 +63,33 @@ class Encoder:
         if tokenizer.eos_token_id is None:
             raise ValueError("the tokenizer has no end-of-sequence token: the trained model could not stop")
 
-    def prompt(self, messages, prefix: str = ACTION_PREFIX) -> PromptIds:
-        """The prompt the planner sends: the messages through the chat template with the generation prompt,
-        then `prefix`, healed at a token boundary."""
-        text = render(self.tok, Prompt(tuple(dict(m) for m in messages), prefix))
-        h = split_tail(self.tok, text)
-        return PromptIds(tuple(encode(self.tok, h.head)), h.tail)
+    def _ids(self, text: str) -> list:
+        return self.tok(text, add_special_tokens=False)["input_ids"]
 
-    def completion(self, prompt: PromptIds, action: str) -> tuple:
-        """The action's ids after the prompt (healed spaces first), then the end token."""
-        ids = self.tok(prompt.tail + action, add_special_tokens=False)["input_ids"]
-        return (*ids, self.tok.eos_token_id)
+    def turns(self, messages, actions) -> list | None:
+        """The text the template writes after the generation prompt for each assistant turn
+        `Action: <action>`; None when it renders the prompt differently once an answer follows."""
+        messages = [dict(m) for m in messages]
+        opening = render(self.tok, Prompt(tuple(messages), ""))
+        out = []
+        for a in actions:
+            content = ACTION_PREFIX + a
+            full = self.tok.apply_chat_template(messages + [{"role": "assistant", "content": content}], tokenize=False)
+            if not full.startswith(opening) or not full[len(opening):].startswith(content):
+                return None
+            out.append(full[len(opening):])
+        return out
+
+    def row(self, messages, *actions) -> tuple:
+        """(prompt ids, [completion ids of each action], True) in TRL's layout, or (..., False) in the
+        generation layout when the template does not allow TRL's (see the module)."""
+        msgs = tuple(dict(m) for m in messages)
+        turns = self.turns(msgs, actions)
+        if turns is not None:
+            return tuple(encode(self.tok, render(self.tok, Prompt(msgs, "")))), [tuple(self._ids(t)) for t in turns], True
+        h = split_tail(self.tok, render(self.tok, Prompt(msgs, ACTION_PREFIX)))
+        ends = [(*self._ids(h.tail + a), self.tok.eos_token_id) for a in actions]
+        return tuple(encode(self.tok, h.head)), ends, False
 
 
 def action_of(message_list, prefix: str = ACTION_PREFIX) -> str:

@@ -41,23 +41,25 @@ def read_pairs(data) -> list:
     return rows
 
 
-def _rejected_ids(row: dict):
-    ids = row.get("rejected_ids")
+GENERATED = "rejected_token_ids"  # the student's generated ids, laid out as TRL's completion (training-data.md)
+
+
+def _generated(row: dict):
+    ids = row.get(GENERATED)
     if ids is None:
         return None
     if not isinstance(ids, list) or not ids or not all(isinstance(t, int) for t in ids):
-        raise DataError(f"row {row_key(row)}: rejected_ids must be a non-empty list of token ids")
+        raise DataError(f"row {row_key(row)}: {GENERATED} must be a non-empty list of token ids")
     return tuple(ids)
 
 
 def preference_row(enc: Encoder, row: dict, chosen: str) -> Encoded:
-    """A row in ids: the prompt, `chosen`, and the student's action (its generated ids when the row has
-    them)."""
-    p = enc.prompt(row["prompt"])
-    generated = _rejected_ids(row)
-    rejected = generated if generated is not None else enc.completion(p, action_of(row["rejected"]))
-    return Encoded(row_key(row), p.ids, enc.completion(p, chosen), rejected, bool(row.get("truncated")),
-                   generated is not None)
+    """A row in ids: the prompt, `chosen`, and the student's action (the ids it generated when the row has
+    them and the template allows TRL's layout, which they are laid out in)."""
+    prompt, (c, r), trl_layout = enc.row(row["prompt"], chosen, action_of(row["rejected"]))
+    generated = _generated(row)
+    use = generated is not None and trl_layout
+    return Encoded(row_key(row), prompt, c, generated if use else r, bool(row.get("truncated")), use)
 
 
 def dpo_rows(rows: list, enc: Encoder) -> list:
@@ -71,9 +73,8 @@ def sft_rows(rows: list, enc: Encoder) -> list:
     out = []
     for r in rows:
         if r["kind"] in TRAINABLE:
-            p = enc.prompt(r["prompt"])
-            out.append(Encoded(row_key(r), p.ids, enc.completion(p, action_of(r["chosen"])), None,
-                               bool(r.get("truncated"))))
+            prompt, (chosen,), _ = enc.row(r["prompt"], action_of(r["chosen"]))
+            out.append(Encoded(row_key(r), prompt, chosen, None, bool(r.get("truncated"))))
     return out
 
 

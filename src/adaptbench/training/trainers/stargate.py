@@ -87,8 +87,8 @@ def step_row(builder, enc: Encoder, key: tuple, view, made_after, action: str, b
         return builder.prompt(view, omit=omit, preferences=(), unmet=(), force_ask=False, made_after=made_after)
 
     prompt = fit(enc.tok, build, budget)
-    p = enc.prompt(prompt.messages, prompt.prefix)
-    return Encoded(key, p.ids, enc.completion(p, action), None, prompt.omitted > 0)
+    ids, (target,), _ = enc.row(prompt.messages, action)
+    return Encoded(key, ids, target, None, prompt.omitted > 0)
 
 
 def stargate_rows(domain, records: list, enc: Encoder, max_length: int) -> tuple:
@@ -103,7 +103,7 @@ def stargate_rows(domain, records: list, enc: Encoder, max_length: int) -> tuple
         own = (r.get("agent_config") or {}).get("budget")
         for i, ((view, made_after), step) in enumerate(zip(steps, r["steps"], strict=True)):
             action = step["action"]
-            room = max_length - len(enc.tok(action, add_special_tokens=False)["input_ids"]) - 2
+            room = max_length - len(enc.tok(action, add_special_tokens=False)["input_ids"]) - 8
             budget = room if own is None else min(own, room)
             rows.append(step_row(builder, enc, (r["persona"], r["task"], r["seed"], 1, i), view, made_after,
                                  action, budget))
