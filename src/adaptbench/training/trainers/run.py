@@ -61,13 +61,20 @@ def prepare(method: str, s, tokenizer, spec=None) -> Prepared:
 
         records = read_rollouts(s.data, s.agent)
         kept = top_fraction(records, s.top)
-        encoded, bad = stargate_rows(load_domain(spec), kept, enc, s.max_length)
+        try:
+            encoded, bad = stargate_rows(load_domain(spec), kept, enc, s.max_length)
+        except (KeyError, TypeError) as exc:  # a record without a rollout record's fields
+            raise R.DataError(f"--data {s.data}: a rollout record is malformed ({type(exc).__name__}: {exc})") from None
         left = {"rollouts": len(records), "rollouts_kept": len(kept), "rollouts_not_replayable": bad}
     else:
         pairs = R.read_pairs(s.data)
         build = {"dpo": R.dpo_rows, "sft": R.sft_rows,
                  "no-reflection": lambda p, e: R.no_reflection_rows(p, e, s.no_gain)}[method]
-        encoded = build(pairs, enc)
+        try:
+            encoded = build(pairs, enc)
+        except (KeyError, TypeError, ValueError) as exc:  # a row without the dataset contract's fields
+            raise R.DataError(f"--data {s.data}: a row of pairs.jsonl is malformed ({type(exc).__name__}: "
+                              f"{exc}); rebuild it with `adapt train data`") from None
         left = {"pairs": len(pairs)}
     if not encoded:
         raise TrainError(f"--data {s.data}: no rows to train {method} on ({json.dumps(left)})")
