@@ -239,3 +239,25 @@ def test_resume_after_kill(tiny, tmp_path):
     assert r["steps"] == 6 and r["steps_run"] < 6
     other = subprocess.run(cmd[:-2] + ["--lr", "0.5"], capture_output=True, text=True, timeout=120)
     assert other.returncode == 1 and "holds a run with other settings (lr" in other.stderr
+
+
+@pytest.mark.slow
+@SKIP_MODELS
+def test_sft_no_reflection_and_star_gate_train_and_merge(tiny, tmp_path):
+    from adaptbench.cli.main import main
+
+    data, runs = tmp_path / "data", tmp_path / "student.jsonl"
+    summary = _data(tiny, data)
+    played = _adapt("rollout", "--agent", "planner", "--model", tiny, "--personas", "sarah,ron", "--tasks", "eggs",
+                    "--seeds", 0, "--max-steps", 3, "--out", runs, "--quiet")
+    assert played.returncode == 0, played.stderr
+    common = ["--model", str(tiny), "--max-steps", "1", "--batch", "2", "--logging-steps", "1"]
+    for method, src in (("sft", data), ("no-reflection", data), ("star-gate", runs)):
+        out = tmp_path / method
+        assert main(["train", method, "--data", str(src), "--out", str(out), *common]) == 0
+        r = json.loads((out / "train.json").read_text())
+        assert r["steps"] == 1 and (out / "merged" / "config.json").is_file()
+        if method == "star-gate":  # the top third of 2 rollouts: 1 record of 3 steps
+            assert (r["rollouts"], r["rollouts_kept"], r["rows"]) == (2, 1, 3)
+        else:
+            assert r["rows"] >= summary["trainable"] and r["last"]["loss"] > 0
