@@ -127,6 +127,19 @@ def test_rows_are_the_planner_s_tokens_and_methods_pick_their_rows(backend):
 
 
 @SKIP_MODELS
+def test_a_template_that_renders_the_prompt_otherwise_gets_the_generation_layout(tiny):
+    from transformers import AutoTokenizer
+
+    from adaptbench.training.trainers.encode import Encoder
+
+    tok = AutoTokenizer.from_pretrained(tiny)
+    tok.chat_template = tok.chat_template.replace("<|assistant|>\n{% endif %}", "<|assistant|>\nthink\n{% endif %}")
+    prompt, (chosen,), trl_layout = Encoder(tok).row(_messages(5), "Look for pan")
+    assert not trl_layout and tok.decode(prompt).endswith("<|assistant|>\nthink\nAction: ")
+    assert list(chosen) == tok("Look for pan", add_special_tokens=False)["input_ids"] + [tok.eos_token_id]
+
+
+@SKIP_MODELS
 def test_long_row_is_reported_never_dropped(backend, tmp_path):
     from adaptbench.training.trainers import DPOSettings
     from adaptbench.training.trainers.run import TrainError, prepare, report_long
