@@ -218,6 +218,7 @@ def test_chain_data_dpo_rollout_on_the_merged_model(tiny, tmp_path):
     assert got.returncode == 0, got.stderr
     r = json.loads((out / "train.json").read_text())
     assert r["rows"] == summary["trainable"] and r["long_rows_left_out"] == 0 and r["steps"] == 2
+    assert r["rows_with_generated_rejected_ids"] == r["rows"]  # the student's own ids (rejected_token_ids)
     assert r["first"]["loss"] == pytest.approx(0.6931, abs=1e-3)  # log 2: the adapter starts as the reference
     assert r["last"]["rewards/margins"] > 0 and r["last"]["loss"] < r["first"]["loss"]
     assert (out / "adapter" / "adapter_config.json").is_file() and (out / "merged" / "config.json").is_file()
