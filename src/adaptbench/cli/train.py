@@ -58,7 +58,6 @@ def _teacher(args, domain, student_backend):
 
     if not args.teacher_model:
         return ScriptedTeacher(domain)
-    _model_dir(args.teacher_model, "--teacher-model")
     same = str(args.teacher_model).rstrip("/") == str(args.student).rstrip("/")
     backend = student_backend if same else TransformersBackend(args.teacher_model, device=args.device,
                                                                batch_size=args.batch)
@@ -74,6 +73,8 @@ def _cmd_data(args) -> int:
     from ..training.relabel import student_policy
 
     _model_dir(args.student, "--student")
+    if args.teacher_model:
+        _model_dir(args.teacher_model, "--teacher-model")
     if args.workers > 1 and args.device != "cpu":
         _fail("--workers above 1 forks the process, which a GPU context does not survive: use --workers 1 with "
               f"--device {args.device}")

@@ -121,7 +121,7 @@ class Builder:
             runs = [self._start(*u, i, priors.get(u, "")) for u in batch]
             self._episodes(runs)
             for u, r in zip(batch, runs, strict=True):
-                priors[u] = prior_summary(r.episode.view())
+                priors[u] = prior_summary(r.episode)
 
     def _start(self, persona, task, seed, interaction, prior: str = "") -> _Run:
         job = Job(self.student.name, persona, task, seed)
