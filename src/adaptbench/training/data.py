@@ -130,7 +130,9 @@ class Builder:
         ep = Episode(f"{episode_id(job)}/i{interaction}", env)
         self.student.start(ep.id, env)
         self.student.priors[ep.id] = prior
-        self.teacher.start(ep.id, env)
+        t0 = time.perf_counter()
+        self.teacher.start(ep.id, env)  # the oracle searches its plan here: teacher time
+        self.times.add("teacher", t0)
         return _Run(job, interaction, ep, prior)
 
     def _episodes(self, runs: list) -> None:
