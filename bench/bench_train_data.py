@@ -8,7 +8,8 @@ nothing to reflect on; like bench_reflection_data's `pairs_every_step`, every st
 here (the teacher relabels, the student proposes a question under the Ask rule, the user answers, three
 probabilities are scored).
 
-    python bench/bench_train_data.py [--student DIR] [--personas sarah,ron] [--tasks eggs] [--max-steps 12]
+    python bench/bench_train_data.py [--student DIR] [--personas sarah,ron,lisa,maya] [--tasks eggs] [--max-steps 8]
+                                     [--batch 2]
 """
 
 from __future__ import annotations
@@ -70,10 +71,10 @@ def main() -> None:
 
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--student", help="student model directory (default: the random tiny model, built here)")
-    ap.add_argument("--personas", default="sarah,ron")
+    ap.add_argument("--personas", default="sarah,ron,lisa,maya")
     ap.add_argument("--tasks", default="eggs")
-    ap.add_argument("--max-steps", type=int, default=12)
-    ap.add_argument("--batch", type=int, default=4)
+    ap.add_argument("--max-steps", type=int, default=8)
+    ap.add_argument("--batch", type=int, default=2)
     args = ap.parse_args()
     domain = load_domain(default_spec())
     personas, tasks = tuple(args.personas.split(",")), tuple(args.tasks.split(","))

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 from ..harness.batches import episode_id
 from ..harness.episode import Episode
 from ..harness.rollout import Job
-from ..harness.workers import run_stream_pool
+from ..harness.workers import run_stream_pool, stop_signals
 from ..llm.backend import Request
 from ..llm.chat import render
 from ..llm.prompts import ACTION_PREFIX
@@ -290,10 +290,12 @@ def build(make_builder, settings: DataSettings, store: PairStore, progress=None)
     todo = units(settings)
     if settings.workers <= 1 or len(todo) <= 1:
         b = make_builder(store)
-        b.run(progress)
+        with stop_signals():  # Ctrl-C / SIGTERM: `Interrupted`, every row written so far kept
+            b.run(progress)
         return b.times
     times, n = Timings(), settings.interactions
-    records = run_stream_pool(todo, settings.workers, _work(make_builder, store.keys, settings.width))
+    width = min(settings.width, -(-len(todo) // settings.workers))  # no worker hoards the units another could run
+    records = run_stream_pool(todo, settings.workers, _work(make_builder, store.keys, width))
     for done, (_u, rows, spent) in enumerate(records, 1):
         for row in rows:
             if not store.done(row_key(row)):
