@@ -64,7 +64,18 @@ def _teacher(args, domain, student_backend):
     return LLMTeacher(backend, domain, args.teacher_model)
 
 
+def _check_data_args(args) -> None:
+    """Usage errors of `adapt train data` before anything heavy is imported."""
+    _model_dir(args.student, "--student")
+    if args.teacher_model:
+        _model_dir(args.teacher_model, "--teacher-model")
+    if args.workers > 1 and args.device != "cpu":
+        _fail("--workers above 1 forks the process, which a GPU context does not survive: use --workers 1 with "
+              f"--device {args.device}")
+
+
 def _cmd_data(args) -> int:
+    _check_data_args(args)
     from ..compiler import load_domain
     from ..harness.workers import Interrupted, WorkerDied
     from ..llm.hf import TransformersBackend
@@ -72,12 +83,6 @@ def _cmd_data(args) -> int:
     from ..training.dataset import PairStore, mix_line
     from ..training.relabel import student_policy
 
-    _model_dir(args.student, "--student")
-    if args.teacher_model:
-        _model_dir(args.teacher_model, "--teacher-model")
-    if args.workers > 1 and args.device != "cpu":
-        _fail("--workers above 1 forks the process, which a GPU context does not survive: use --workers 1 with "
-              f"--device {args.device}")
     domain = load_domain(args.spec)
     split, personas, tasks, seeds = _selection(args, domain)
     backend = TransformersBackend(args.student, device=args.device, batch_size=args.batch)
