@@ -121,6 +121,9 @@ def test_resume_after_kill_and_provenance(tiny, tmp_path):
         assert r["rejected"][0]["role"] == "assistant" and r["prompt"][0]["role"] == "system"
     summary = json.loads((out / "summary.json").read_text())
     assert summary["pairs"] == len(rows) and "steps:" in done.stdout
+    # the tiny model's shortest prompt exceeds --max-length 600: every row kept, flagged and counted
+    assert all(r["over_budget"] is True for r in rows) and summary["over_budget"] == len(rows)
+    assert f"{len(rows)} still over --max-length" in done.stdout
 
 
 def test_store_drops_torn_line_and_summarises(tmp_path):

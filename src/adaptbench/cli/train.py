@@ -85,7 +85,8 @@ def _cmd_data(args) -> int:
 
     domain = load_domain(args.spec)
     split, personas, tasks, seeds = _selection(args, domain)
-    backend = TransformersBackend(args.student, device=args.device, batch_size=args.batch)
+    backend = TransformersBackend(args.student, device=args.device, batch_size=args.batch,
+                                  temperature=args.temperature, seed=args.sample_seed)
     teacher = _teacher(args, domain, backend)
     settings = DataSettings(split, personas, tasks, seeds, args.interactions, args.questions, args.eps1, args.eps2,
                             args.max_length, args.batch, _workers(args.workers), args.max_steps)
@@ -149,6 +150,9 @@ def add_data(train_sub) -> None:
                    "models and --batch episodes in flight (default 1; at most the CPU cores)")
     p.add_argument("--max-steps", type=positive, help="step budget per episode (default 50, as in adapt rollout)")
     p.add_argument("--device", default="cpu")
+    from .model import add_sampling_options
+
+    add_sampling_options(p, "")  # the student's actions and reflection questions
     p.set_defaults(func=_cmd_data)
 
 

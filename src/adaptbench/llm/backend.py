@@ -10,6 +10,7 @@ are rendered, counted and truncated the same way for a local model and a served 
 
 from __future__ import annotations
 
+import hashlib
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
 
@@ -82,7 +83,10 @@ class Request:
     (the completion is cut before the first), a token limit, and a validator for what comes back
     (`text -> bool`; used where the grammar may not be enforced, e.g. a server without grammars), and
     a session key: requests of one session (an episode's steps) extend each other's prompts, so a
-    backend may keep the session's key/value cache and read only the new tokens."""
+    backend may keep the session's key/value cache and read only the new tokens. `key` names the
+    request's own random stream when the backend samples (`llm.sampling`: an episode's step, e.g.
+    `planner/juan/eggs/0/3/action`; None: the backend's run generator), and `temperature` overrides the
+    backend's for this request (the LLM user answers greedily: 0.0)."""
 
     prompt: str
     grammar: str | None = None
@@ -90,6 +94,8 @@ class Request:
     max_tokens: int = 64
     validate: object = field(default=None, compare=False)
     session: str | None = None
+    key: str | None = None
+    temperature: float | None = None
 
 
 @dataclass(frozen=True)
@@ -141,6 +147,22 @@ class Backend(ABC):
 
     def release(self, session: str) -> None:  # noqa: B027 - optional hook, nothing to release by default
         """Forget whatever is kept for a session (its episode ended)."""
+
+
+SEED_RANGE = 2**31  # request seeds (`llm.sampling`) fit a 32-bit signed int: what every server's `seed` takes
+
+
+def request_seed(sample_seed: int, key: str) -> int:
+    """The seed of a keyed request: a stable hash of the run's sample seed and the key (the same in
+    every process and on every machine), in [0, 2**31)."""
+    digest = hashlib.blake2b(f"{sample_seed}\x00{key}".encode(), digest_size=8).digest()
+    return int.from_bytes(digest, "big") % SEED_RANGE
+
+
+def sampling_config(temperature: float, seed: int) -> dict:
+    """What a backend records of its sampling: the temperature, and the sample seed when it samples (a
+    greedy run is the same under every seed, so its episodes match whatever `--sample-seed` said)."""
+    return {"temperature": temperature, **({"sample_seed": seed} if temperature > 0 else {})}
 
 
 def make_backend(kind: str, **kw) -> Backend:

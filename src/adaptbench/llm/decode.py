@@ -410,15 +410,15 @@ def loop_supported(model) -> bool:
 
 
 class Picker:
-    """Masks and samples each step's tokens: greedy at temperature 0, else from the softmax at that
-    temperature (seeded generator). With a grammar processor, the rows' first masks (the costliest: the
+    """Masks and samples each step's tokens: greedy at temperature 0, else each row from its softmax at its
+    temperature with its own generator (`sampling.RowSampler`). With a grammar processor, the rows' first masks (the costliest: the
     start of an action allows many tokens) are computed on a worker thread while the prompts are read;
     later ones as the rows take their tokens (`advance`), which also finds the tokens a grammar forces.
     (Computing masks on the worker during each forward pass instead measured slower on the CPU: 0.82–0.89
     of unconstrained speed against 1.03–1.32 fast-forwarding, and on a GPU forward passes are the cost.)"""
 
-    def __init__(self, proc, temperature: float = 0.0, generator: torch.Generator | None = None):
-        self.proc, self.temperature, self.generator = proc, temperature, generator
+    def __init__(self, proc, sampler=None):
+        self.proc, self.sampler = proc, sampler  # sampler: `sampling.RowSampler` (None: greedy)
         self._first = None
 
     def pick(self, logits: torch.Tensor, active: list, steps) -> torch.Tensor:
@@ -432,9 +432,8 @@ class Picker:
             t0 = time.perf_counter()
             self.proc.mask(logits, active, live, steps)
             self.proc.mask_seconds += time.perf_counter() - t0
-        if self.temperature > 0:
-            probs = torch.softmax(logits / self.temperature, dim=-1)
-            return torch.multinomial(probs, 1, generator=self.generator).view(-1)
+        if self.sampler is not None:
+            return self.sampler.pick(logits, active)
         return logits.argmax(dim=-1)
 
     def start(self, rows: list) -> None:

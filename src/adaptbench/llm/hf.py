@@ -21,6 +21,7 @@ from . import chat
 from .backend import Backend, Completion, Scored, check_device, context_limit, cut_at_stop, load_tokenizer
 from .constrained import GrammarProcessor, Matchers, closing_tokens, ll_tokenizer
 from .decode import Picker, Row, Sessions, decode, loop_supported
+from .sampling import RowSampler, SampleProcessor, generator, request_seed, sampling_config
 
 DTYPES = {"auto": "auto", "float32": torch.float32, "bfloat16": torch.bfloat16, "float16": torch.float16}
 
@@ -61,7 +62,9 @@ def positions(mask: torch.Tensor) -> torch.Tensor:
 
 class TransformersBackend(Backend):
     """A Hugging Face causal LM from a local directory. On the CPU, torch uses `threads` threads (1 by
-    default: a small model gains nothing from more, and on a shared machine they contend)."""
+    default: a small model gains nothing from more, and on a shared machine they contend). Greedy at
+    `temperature` 0; above it, sampled under the run's sample seed `seed` (`llm.sampling`: a request with
+    a `key` from its own generator, one without from the run's generator, seeded once here)."""
 
     name = "transformers"
 
@@ -88,12 +91,19 @@ class TransformersBackend(Backend):
         self.loop = loop_supported(self.model)
         self.prefill_together = device != "cpu"  # see decode.prefill_rows
         self.sessions = Sessions(2 * batch_size if sessions is None else sessions)
-        self._generator = torch.Generator(device=device).manual_seed(seed)
+        self._generator = generator(seed, device)  # the run's: seeded once, for requests without a key
 
     def config(self) -> dict:
-        """The model directory, device, dtype and sampling temperature."""
+        """The model directory, device, dtype, sampling temperature and, when sampling, the sample seed."""
         return {"backend": self.name, "model": self.path, "device": self.device, "dtype": self.dtype,
-                "temperature": self.temperature}
+                **sampling_config(self.temperature, self.seed)}
+
+    def sampler(self, reqs: list) -> RowSampler:
+        """Each request's temperature and generator (`llm.sampling`)."""
+        temps = [self.temperature if r.temperature is None else r.temperature for r in reqs]
+        gens = [None if t <= 0 else self._generator if r.key is None else
+                generator(request_seed(self.seed, r.key), self.device) for r, t in zip(reqs, temps, strict=True)]
+        return RowSampler(temps, gens)
 
     def encode(self, text: str) -> list:
         """Token ids of rendered text (no special tokens added: the chat template holds them)."""
@@ -121,7 +131,7 @@ class TransformersBackend(Backend):
         if not self.loop:
             return self._batch_hf(reqs, prompts, proc, t0)
         rows = [Row(p, r.max_tokens, tuple(r.stop), getattr(r, "session", None)) for p, r in zip(prompts, reqs, strict=True)]
-        picker = Picker(proc, self.temperature, self._generator)
+        picker = Picker(proc, self.sampler(reqs))
         reading = decode(self.model, rows, self.sessions, picker, self._stopper(rows), self.pad_id,
                          self.prefill_together)
         seconds = time.perf_counter() - t0
@@ -151,15 +161,13 @@ class TransformersBackend(Backend):
         ids, mask = ids.to(self.device), mask.to(self.device)
         eos = self.tokenizer.eos_token_id
         stops = RowStops(self.tokenizer, ids.shape[1], [r.max_tokens for r in reqs], [r.stop for r in reqs])
-        sample = self.temperature > 0
-        if sample:
-            torch.manual_seed(self.seed)
+        sampler = self.sampler(reqs)  # each row drawn with its own generator, after the grammar's mask
+        processors = ([proc] if proc else []) + ([] if sampler.greedy else [SampleProcessor(sampler)])
         gen = self.model.generate(
             input_ids=ids, attention_mask=mask, max_new_tokens=max(r.max_tokens for r in reqs),
-            logits_processor=LogitsProcessorList([proc] if proc else []),
-            stopping_criteria=StoppingCriteriaList([stops]), do_sample=sample,
-            temperature=self.temperature if sample else None, top_p=None, top_k=None,
-            pad_token_id=self.pad_id, eos_token_id=eos)
+            logits_processor=LogitsProcessorList(processors),
+            stopping_criteria=StoppingCriteriaList([stops]), do_sample=False,
+            temperature=None, top_p=None, top_k=None, pad_token_id=self.pad_id, eos_token_id=eos)
         seconds = time.perf_counter() - t0
         return [self._completion(r, gen[i, ids.shape[1]:].tolist(), len(prompts[i]), proc, i, seconds, len(reqs))
                 for i, r in enumerate(reqs)]

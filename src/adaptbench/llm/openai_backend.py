@@ -19,12 +19,24 @@ the grammar to the validator and the retry; it offers no prompt log-probabilitie
 from __future__ import annotations
 
 import json
+import random
 import time
 import urllib.error
 import urllib.request
 from concurrent.futures import ThreadPoolExecutor
 
-from .backend import Backend, Completion, ModelError, Scored, context_limit, cut_at_stop, load_tokenizer
+from .backend import (
+    SEED_RANGE,
+    Backend,
+    Completion,
+    ModelError,
+    Scored,
+    context_limit,
+    cut_at_stop,
+    load_tokenizer,
+    request_seed,
+    sampling_config,
+)
 
 
 class ServerError(ModelError):
@@ -43,8 +55,9 @@ class OpenAIBackend(Backend):
 
     def __init__(self, url: str, model: str, tokenizer: str, api_key: str | None = None, timeout: float = 120.0,
                  concurrency: int = 16, temperature: float = 0.0, text_prompts: bool = False,
-                 grammar_field: bool = True):
+                 grammar_field: bool = True, seed: int = 0):
         self.url, self.model, self.api_key = url.rstrip("/"), model, api_key
+        self.seed, self._rng = seed, random.Random(seed)  # the run's seeds for requests without a key
         self.text_prompts, self.grammar_field = text_prompts, grammar_field
         self.timeout, self.concurrency, self.temperature = timeout, concurrency, temperature
         self.tokenizer = load_tokenizer(tokenizer)
@@ -52,8 +65,13 @@ class OpenAIBackend(Backend):
         self.retries = 0  # completions that failed validation and were asked again
 
     def config(self) -> dict:
-        """The server's model name and sampling temperature."""
-        return {"backend": self.name, "model": self.model, "temperature": self.temperature}
+        """The server's model name, sampling temperature and, when sampling, the sample seed."""
+        return {"backend": self.name, "model": self.model, **sampling_config(self.temperature, self.seed)}
+
+    def _seed(self, req) -> int:
+        """The `seed` sent with a request (`llm.sampling`): derived from the sample seed and the request's key
+        like the transformers backend's generators, else the next of the run's seeds."""
+        return request_seed(self.seed, req.key) if req.key is not None else self._rng.randrange(SEED_RANGE)
 
     def _post(self, path: str, body: dict | None) -> dict:
         """POST `body` (GET when None) and return the JSON answer; ServerError saying what to do."""
@@ -97,9 +115,11 @@ class OpenAIBackend(Backend):
         """Token ids of rendered text (the chat template already holds the special tokens)."""
         return self.tokenizer(text, add_special_tokens=False)["input_ids"]
 
-    def _complete(self, ids: list, req, temperature: float) -> tuple:
+    def _complete(self, ids: list, req, temperature: float, seed: int) -> tuple:
         prompt = req.prompt if self.text_prompts else ids
         body = {"model": self.model, "prompt": prompt, "max_tokens": req.max_tokens, "temperature": temperature}
+        if temperature > 0:
+            body["seed"] = seed
         if req.stop:
             body["stop"] = list(req.stop)
         if req.grammar is not None and self.grammar_field:
@@ -109,15 +129,16 @@ class OpenAIBackend(Backend):
         usage = out.get("usage") or {}
         return cut_at_stop(choice.get("text", ""), req.stop), usage.get("completion_tokens")
 
-    def _one(self, req) -> Completion:
+    def _one(self, req, seed: int) -> Completion:
         t0 = time.perf_counter()
         ids = self.encode(req.prompt)
-        text, n = self._complete(ids, req, self.temperature)
+        temperature = self.temperature if req.temperature is None else req.temperature
+        text, n = self._complete(ids, req, temperature, seed)
         tries = 1
         ok = None if req.validate is None else req.validate(text)
         if ok is False:
             self.retries += 1
-            text, n = self._complete(ids, req, max(self.temperature, 0.7))
+            text, n = self._complete(ids, req, max(temperature, 0.7), (seed + 1) % SEED_RANGE)
             tries, ok = 2, req.validate(text)
         n = n if n is not None else len(self.encode(text))
         accepted = ok if req.grammar is not None else None
@@ -125,9 +146,10 @@ class OpenAIBackend(Backend):
                           {"seconds": round(time.perf_counter() - t0, 4), "tries": tries})
 
     def generate(self, requests) -> list:
-        """Completions for the requests, sent concurrently."""
+        """Completions for the requests, sent concurrently (each with its `seed`, chosen here in order)."""
+        seeds = [self._seed(r) for r in requests]
         with ThreadPoolExecutor(max_workers=max(1, min(self.concurrency, len(requests)))) as pool:
-            return list(pool.map(self._one, requests))
+            return list(pool.map(self._one, requests, seeds))
 
     def _score_one(self, p: list, cont: str) -> Scored:
         c = self.encode(cont)

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import time
 from collections import Counter
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from ..harness.batches import episode_id
 from ..harness.episode import Episode
@@ -24,6 +24,7 @@ from ..harness.rollout import Job
 from ..harness.workers import run_stream_pool, stop_signals
 from ..llm.backend import Request
 from ..llm.chat import render
+from ..llm.policies import sample_key
 from ..llm.prompts import ACTION_PREFIX
 from ..runtime.env import make_env
 from .dataset import PairStore, mix_line, row_key
@@ -188,7 +189,8 @@ class Builder:
         if self.s.questions == "topics":
             out = [topic_question(self.topics, a_t, v.task_text) for _, v, _, a_t in asks]
         else:
-            reqs = [reflection_request(self.student, v, d.action, a_t, tuple(r.made_after)) for r, v, d, a_t in asks]
+            reqs = [replace(reflection_request(self.student, v, d.action, a_t, tuple(r.made_after)),
+                            key=sample_key(v, "reflection")) for r, v, d, a_t in asks]  # the episode's own stream
             out = [c.text.strip() for c in self.student.backend.generate(reqs)] if reqs else []
         self.times.add("reflection", t0)
         return out
@@ -211,7 +213,9 @@ class Builder:
         chosen = {"question": q, "teacher": a_t}.get(kind)
         fitted, n, cut = fit_row(tok, prompt, completion_tokens(tok, ACTION_PREFIX + decision.action,
                                                                 ACTION_PREFIX + (chosen or "")), self.s.max_length)
-        return self._fields(r, view, decision.action, a_t, q, answer, probs, kind, reason, chosen, fitted, n, cut)
+        row = self._fields(r, view, decision.action, a_t, q, answer, probs, kind, reason, chosen, fitted, n, cut)
+        row["over_budget"] = bool(fitted.meta.get("over_budget"))  # over max_length even cut to the last step
+        return row
 
     def _fields(self, r, view, a_s, a_t, q, answer, probs, kind, reason, chosen, fitted, n, cut) -> dict:
         msg = lambda t: [{"role": "assistant", "content": ACTION_PREFIX + t}]  # noqa: E731

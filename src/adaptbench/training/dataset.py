@@ -89,7 +89,8 @@ class PairStore:
 
 def summarise(rows: list) -> dict:
     """The mix: counts by kind and skip reason, shares of questions and teacher actions, prompt-token
-    statistics and rows truncated (none is ever dropped)."""
+    statistics, rows truncated and rows still over `--max-length` with only the last step left
+    (`over_budget`: kept and flagged, never cut silently; none is ever dropped)."""
     kinds = Counter(r["kind"] for r in rows)
     reasons = Counter(r["skip_reason"] for r in rows if r["kind"] == "skipped")
     tokens = [r["prompt_tokens"] for r in rows]
@@ -98,7 +99,8 @@ def summarise(rows: list) -> dict:
             "skip_reasons": dict(reasons), "share": {k: round(kinds[k] / n, 4) if n else 0.0 for k in KINDS_ALL},
             "question_sources": dict(Counter(r["question_source"] for r in rows if r["kind"] == "question")),
             "prompt_tokens": {"min": min(tokens), "max": max(tokens), "mean": round(statistics.fmean(tokens), 1)}
-            if tokens else {}, "truncated": sum(bool(r["truncated"]) for r in rows), "dropped": 0}
+            if tokens else {}, "truncated": sum(bool(r["truncated"]) for r in rows),
+            "over_budget": sum(bool(r.get("over_budget")) for r in rows), "dropped": 0}
 
 
 KINDS_ALL = ("question", "teacher", "skipped")
@@ -110,4 +112,5 @@ def mix_line(summary: dict) -> str:
     reasons = ", ".join(f"{r} {c}" for r, c in sorted(summary["skip_reasons"].items())) or "none"
     return (f"{summary['pairs']} steps: {k.get('question', 0)} questions ({s['question']:.0%}), "
             f"{k.get('teacher', 0)} teacher actions ({s['teacher']:.0%}), {k.get('skipped', 0)} skipped "
-            f"({reasons}); {summary['truncated']} prompts left-truncated, 0 dropped")
+            f"({reasons}); {summary['truncated']} prompts left-truncated, {summary.get('over_budget', 0)} still over "
+            "--max-length (kept, flagged over_budget), 0 dropped")
