@@ -1,7 +1,7 @@
 """A small OpenAI-compatible completions server over the tiny model, for testing the `openai` backend
 (standard library http.server in a thread). It takes token-id prompts, vLLM's
 `structured_outputs: {"grammar": ...}` (ignored when `enforce` is False, like a server without
-grammar support), `echo` + `logprobs` for prompt log-probabilities, and `temperature` with `seed` the way
+grammar support), `echo` + `logprobs` for prompt log-probabilities, vLLM's `return_token_ids`, and `temperature` with `seed` the way
 vLLM takes them (a request with a seed is sampled from a generator of its own). `server.bodies` keeps
 every request body."""
 
@@ -43,6 +43,8 @@ def serve(backend, enforce: bool = True):
                     c = backend.generate([Request(text, grammar, tuple(body.get("stop") or ()),
                                                   body.get("max_tokens", 16), **seeded)])[0]
                     out = {"choices": [{"text": c.text}], "usage": {"completion_tokens": c.tokens}}
+                    if body.get("return_token_ids"):  # vLLM's field: the generated ids, EOS included
+                        out["choices"][0]["token_ids"] = list(c.token_ids)
             data = json.dumps(out).encode()
             self.send_response(200)
             self.send_header("Content-Type", "application/json")

@@ -100,3 +100,22 @@ def test_unreachable_server_is_a_clear_error(tiny):
     ob = OpenAIBackend("http://127.0.0.1:9/v1", "tiny", str(tiny), timeout=2)
     with pytest.raises(ServerError, match="127.0.0.1:9"):
         ob.generate([Request("<|bos|>x", None, (), 2)])
+
+
+def test_completions_carry_the_servers_token_ids_and_score_them(domain, tiny, backend, server):
+    """vLLM's `return_token_ids`: the served completion's ids (EOS included) are the local backend's, and
+    scoring them gives the local scores; with text the end token is scored as well."""
+    from adaptbench.llm.openai_backend import OpenAIBackend
+
+    url, enforce = server
+    ob = OpenAIBackend(url, "tiny", str(tiny))
+    req = _request(domain, ob.tokenizer, runtime_index(domain).parser)
+    out = ob.generate([req])[0]
+    if enforce:
+        local = backend.generate([req])[0]
+        assert out.token_ids == local.token_ids and out.token_ids[-1] == ob.tokenizer.eos_token_id
+        assert out.stats["canonical"] == local.stats["canonical"]
+    (served,) = ob.score(req.prompt, [out.token_ids])
+    (mine,) = backend.score(req.prompt, [out.token_ids])
+    assert served.token_ids == mine.token_ids == out.token_ids
+    assert served.logprobs == pytest.approx(mine.logprobs, abs=2e-4)

@@ -7,8 +7,9 @@ and sent as token ids to `/v1/completions`, so a served model sees exactly what 
 backend would. The grammar goes the way vLLM's structured outputs take it
 (`"structured_outputs": {"grammar": ...}`); what comes back is checked with the request's validator
 (the simulator's parser) and, if the server did not enforce the grammar, asked once more (sampled at
-temperature 0.7). `score` reads prompt log-probabilities (`echo` + `logprobs`, or vLLM's
-`prompt_logprobs`). Requests of one batch are sent concurrently. Standard library only (urllib).
+temperature 0.7). A completion carries its generated ids where the server returns them (vLLM's
+`return_token_ids`; None otherwise: `transformers serve`). `score` reads prompt log-probabilities
+(`echo` + `logprobs`, or vLLM's `prompt_logprobs`). Requests of one batch are sent concurrently. Standard library only (urllib).
 
 `transformers serve` (transformers 5.x) takes only text prompts and refuses the grammar field (HTTP
 422): `OpenAIBackend(..., text_prompts=True, grammar_field=False)` sends the rendered text and leaves
@@ -31,7 +32,9 @@ from .backend import (
     Completion,
     ModelError,
     Scored,
+    canonical,
     context_limit,
+    continuation_ids,
     cut_at_stop,
     load_tokenizer,
     request_seed,
@@ -124,26 +127,32 @@ class OpenAIBackend(Backend):
             body["stop"] = list(req.stop)
         if req.grammar is not None and self.grammar_field:
             body["structured_outputs"] = {"grammar": req.grammar}
+        if not self.text_prompts:
+            body["return_token_ids"] = True  # vLLM: the generated ids (EOS included) in `choices[0].token_ids`
         out = self._post("/completions", body)
         choice = out["choices"][0]
         usage = out.get("usage") or {}
-        return cut_at_stop(choice.get("text", ""), req.stop), usage.get("completion_tokens")
+        ids = choice.get("token_ids")
+        ids = tuple(int(t) for t in ids) if isinstance(ids, list) else None
+        return cut_at_stop(choice.get("text", ""), req.stop), usage.get("completion_tokens"), ids
 
     def _one(self, req, seed: int) -> Completion:
         t0 = time.perf_counter()
         ids = self.encode(req.prompt)
         temperature = self.temperature if req.temperature is None else req.temperature
-        text, n = self._complete(ids, req, temperature, seed)
+        text, n, out_ids = self._complete(ids, req, temperature, seed)
         tries = 1
         ok = None if req.validate is None else req.validate(text)
         if ok is False:
             self.retries += 1
-            text, n = self._complete(ids, req, max(temperature, 0.7), (seed + 1) % SEED_RANGE)
+            text, n, out_ids = self._complete(ids, req, max(temperature, 0.7), (seed + 1) % SEED_RANGE)
             tries, ok = 2, req.validate(text)
-        n = n if n is not None else len(self.encode(text))
+        n = n if n is not None else len(out_ids) if out_ids is not None else len(self.encode(text))
         accepted = ok if req.grammar is not None else None
-        return Completion(text, len(ids), n, accepted,
-                          {"seconds": round(time.perf_counter() - t0, 4), "tries": tries})
+        stats = {"seconds": round(time.perf_counter() - t0, 4), "tries": tries}
+        if out_ids is not None:
+            stats["canonical"] = canonical(self.tokenizer, out_ids)
+        return Completion(text, len(ids), n, accepted, stats, out_ids)
 
     def generate(self, requests) -> list:
         """Completions for the requests, sent concurrently (each with its `seed`, chosen here in order)."""
@@ -151,15 +160,17 @@ class OpenAIBackend(Backend):
         with ThreadPoolExecutor(max_workers=max(1, min(self.concurrency, len(requests)))) as pool:
             return list(pool.map(self._one, requests, seeds))
 
-    def _score_one(self, p: list, cont: str) -> Scored:
-        c = self.encode(cont)
-        body = {"model": self.model, "prompt": self.tokenizer.decode(p + c) if self.text_prompts else p + c, "max_tokens": 1, "temperature": 0.0, "echo": True,
-                "logprobs": 0, "prompt_logprobs": 0}
+    def _score_one(self, p: list, cont) -> Scored:
+        c = continuation_ids(self.tokenizer, cont)
+        body = {"model": self.model, "prompt": self.tokenizer.decode(p + c) if self.text_prompts else p + c,
+                "max_tokens": 1, "temperature": 0.0, "echo": True, "logprobs": 0, "prompt_logprobs": 0}
         choice = self._post("/completions", body)["choices"][0]
-        return Scored(cont, _prompt_logprobs(choice, p + c)[len(p):])
+        text = cont if isinstance(cont, str) else self.tokenizer.decode(c, skip_special_tokens=True)
+        return Scored(text, _prompt_logprobs(choice, p + c)[len(p):], tuple(c))
 
-    def score(self, prompt: str, continuations) -> list:
-        """Per-token log-probabilities of each continuation from the server's prompt log-probs."""
+    def score(self, prompt: str, continuations, dtype: str | None = None) -> list:
+        """Per-token log-probabilities of each continuation (text: with the end token; ids: as they are)
+        from the server's prompt log-probs, in the server's precision (`dtype` cannot change it)."""
         p = self.encode(prompt)
         with ThreadPoolExecutor(max_workers=max(1, min(self.concurrency, len(continuations)))) as pool:
             return list(pool.map(lambda c: self._score_one(p, c), continuations))

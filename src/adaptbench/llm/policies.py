@@ -183,6 +183,8 @@ class LLMPolicy(Policy):
                  "prepare_seconds": round(prep, 4), **out.stats}
         if thought:
             stats["thought"] = thought
+        if out.token_ids is not None:  # what the model generated (after the healed prompt: stats["healed"])
+            stats["token_ids"] = list(out.token_ids)
         over = prompt.meta.get("over_budget", 0)
         if over:  # the shortest prompt (every older step left out) still exceeds the budget
             stats["over_budget"], stats["over_budget_tokens"] = True, over

@@ -18,7 +18,8 @@ TRAINABLE = ("question", "teacher")
 FIELDS = ("prompt", "chosen", "rejected", "kind", "skip_reason", "teacher_action", "student_action", "question",
           "answer", "question_source", "p_teacher", "p_teacher_given_answer", "p_student", "delta_q", "delta_t",
           "eps1", "eps2", "prompt_tokens", "truncated", "spec_hash", "split", "persona", "task", "seed",
-          "interaction", "step", "prior", "student_model", "teacher", "teacher_model")
+          "interaction", "step", "prior", "student_model", "teacher", "teacher_model", "rejected_token_ids",
+          "rejected_canonical", "score_dtype")
 
 
 def row_key(row: dict) -> tuple:
@@ -90,7 +91,8 @@ class PairStore:
 def summarise(rows: list) -> dict:
     """The mix: counts by kind and skip reason, shares of questions and teacher actions, prompt-token
     statistics, rows truncated and rows still over `--max-length` with only the last step left
-    (`over_budget`: kept and flagged, never cut silently; none is ever dropped)."""
+    (`over_budget`: kept and flagged, never cut silently; none is ever dropped), rejected answers with
+    canonical / non-canonical / no generated ids, and the precision the probabilities were scored in."""
     kinds = Counter(r["kind"] for r in rows)
     reasons = Counter(r["skip_reason"] for r in rows if r["kind"] == "skipped")
     tokens = [r["prompt_tokens"] for r in rows]
@@ -100,7 +102,16 @@ def summarise(rows: list) -> dict:
             "question_sources": dict(Counter(r["question_source"] for r in rows if r["kind"] == "question")),
             "prompt_tokens": {"min": min(tokens), "max": max(tokens), "mean": round(statistics.fmean(tokens), 1)}
             if tokens else {}, "truncated": sum(bool(r["truncated"]) for r in rows),
-            "over_budget": sum(bool(r.get("over_budget")) for r in rows), "dropped": 0}
+            "over_budget": sum(bool(r.get("over_budget")) for r in rows), "dropped": 0,
+            "rejected_ids": _canonical_counts(rows),
+            "score_dtypes": sorted({r["score_dtype"] for r in rows if r.get("score_dtype")})}
+
+
+def _canonical_counts(rows: list) -> dict:
+    """Rejected answers whose generated ids are / are not the tokenizer's own encoding, and rows
+    without ids (written before they were recorded, or by a backend that returns none)."""
+    flags = Counter(r.get("rejected_canonical") for r in rows)
+    return {"canonical": flags[True], "non_canonical": flags[False], "unknown": flags[None]}
 
 
 KINDS_ALL = ("question", "teacher", "skipped")
