@@ -21,7 +21,7 @@ def _oracle_record(domain, task="eggs", seed=0):
 
 
 def test_examples_replay_the_record(domain, backend):
-    from adaptbench.llm.pretrain import IGNORE, examples, replay_views
+    from adaptbench.training.pretrain import IGNORE, examples, replay_views
 
     rec = _oracle_record(domain)
     views = replay_views(domain, rec)
@@ -41,8 +41,8 @@ def test_examples_replay_the_record(domain, backend):
 
 def test_an_episode_is_packed_into_one_sequence(domain, backend):
     from adaptbench.llm.chat import render
-    from adaptbench.llm.pretrain import IGNORE, examples, replay_views
     from adaptbench.llm.prompts import PromptBuilder
+    from adaptbench.training.pretrain import IGNORE, examples, replay_views
 
     rec = _oracle_record(domain)
     (ids, labels), = examples(domain, [rec], backend.tokenizer)[0]
