@@ -205,11 +205,13 @@ def _cmd_model_student(args) -> int:
     from ..compiler import load_domain
     from ..harness.rollout import parse_seeds
     from ..training.student import StudentSettings, build_student, training_personas
+    from .runs import _names
 
     domain = load_domain(args.spec)
+    tasks = () if args.tasks == "all" else tuple(_names(args.tasks, domain.task, "task"))
     try:
         training_personas(domain, args.split)
-        s = StudentSettings(split=args.split, ask_seeds=tuple(parse_seeds(args.ask_seeds)),
+        s = StudentSettings(split=args.split, tasks=tasks, ask_seeds=tuple(parse_seeds(args.ask_seeds)),
                             oracle_seeds=tuple(parse_seeds(args.oracle_seeds)), hidden=args.hidden,
                             layers=args.layers, steps=args.steps, lr=args.lr, seed=args.seed, workers=args.workers)
     except ValueError as exc:
@@ -244,6 +246,7 @@ def _add_student_command(msub) -> None:
                    help=f"scene seeds of the oracle-ask episodes (default {_seeds_text(d.ask_seeds)})")
     q.add_argument("--oracle-seeds", default=_seeds_text(d.oracle_seeds),
                    help=f"scene seeds of the oracle episodes (default {_seeds_text(d.oracle_seeds)})")
+    q.add_argument("--tasks", default="all", help="'all' (default) or comma-separated task ids")
     q.add_argument("--hidden", type=int, default=d.hidden, help=f"default {d.hidden}")
     q.add_argument("--layers", type=int, default=d.layers, help=f"default {d.layers}")
     q.add_argument("--steps", type=int, default=d.steps, help=f"updates, one packed episode each (default {d.steps})")
