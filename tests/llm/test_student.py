@@ -38,7 +38,7 @@ def test_the_shipped_student_completes_a_dish_and_asks(tmp_path, capsys):
     assert sum(s["ok"] for s in rec["steps"]) >= len(rec["steps"]) // 2, actions
 
 
-CASE = ("samantha", "cereal_coffee")  # split 0 unseen persona, scene seed 0 (never trained on)
+CASE = ("mark", "cereal_coffee")  # split 0 unseen persona, scene seed 0 (never trained on)
 
 
 @pytest.mark.slow
