@@ -40,7 +40,9 @@ def _direct(model, tok, prompt: str, action: str) -> float:
     import torch
 
     p = tok(prompt, add_special_tokens=False)["input_ids"]
-    a = tok(action, add_special_tokens=False)["input_ids"]
+    from adaptbench.llm.chat import end_token
+
+    a = action if isinstance(action, list) else tok(action, add_special_tokens=False)["input_ids"] + [end_token(tok)]
     with torch.no_grad():
         logits = model(input_ids=torch.tensor([p + a])).logits[0].float()
     logp = torch.log_softmax(logits, -1)
@@ -71,6 +73,10 @@ def test_delta_batched_equals_direct_forward(backend, domain):
     assert probs.p_teacher == pytest.approx(_direct(model, tok, x, teacher), abs=1e-5)
     assert probs.p_student == pytest.approx(_direct(model, tok, x, own), abs=1e-5)
     assert probs.p_teacher_given_answer == pytest.approx(_direct(model, tok, xq, teacher), abs=1e-5)
+    generated = d.stats["token_ids"]  # on-policy: the student's own action is scored on the ids it generated
+    on_policy = step_probabilities(backend, x, xq, teacher, d.action, generated)
+    assert on_policy.p_student == pytest.approx(_direct(model, tok, x, generated), abs=1e-5)
+    assert on_policy.p_teacher == probs.p_teacher
 
 
 @SKIP_MODELS
@@ -121,6 +127,29 @@ def test_resume_after_kill_and_provenance(tiny, tmp_path):
         assert r["rejected"][0]["role"] == "assistant" and r["prompt"][0]["role"] == "system"
     summary = json.loads((out / "summary.json").read_text())
     assert summary["pairs"] == len(rows) and "steps:" in done.stdout
+    # the tiny model's shortest prompt exceeds --max-length 600: every row kept, flagged and counted
+    assert all(r["over_budget"] is True for r in rows) and summary["over_budget"] == len(rows)
+    assert f"{len(rows)} still over --max-length" in done.stdout
+    _check_rejected_ids(tiny, rows, summary)
+
+
+def _check_rejected_ids(tiny, rows, summary):
+    """Every row keeps the student's generated ids for its rejected answer, laid out as a DPO trainer cuts
+    a completion after the prompt's generation prompt, and the summary counts them and the score dtype."""
+    from transformers import AutoTokenizer
+
+    tok = AutoTokenizer.from_pretrained(tiny)
+    for r in rows:
+        ids = r["rejected_token_ids"]
+        assert ids and isinstance(r["rejected_canonical"], bool)
+        opening = tok.apply_chat_template(r["prompt"], tokenize=False, add_generation_prompt=True)
+        turn = tok.apply_chat_template(r["prompt"] + r["rejected"], tokenize=False)[len(opening):]
+        assert tok.decode(ids) == turn  # the same text, in the ids the student took
+        assert r["rejected_canonical"] == (ids == tok(turn, add_special_tokens=False)["input_ids"])
+    counts = summary["rejected_ids"]
+    assert counts["canonical"] + counts["non_canonical"] == len(rows) and counts["unknown"] == 0
+    scored = [r for r in rows if r["p_student"] is not None]
+    assert all(r["score_dtype"] == "float32" for r in scored) and summary["score_dtypes"] == (["float32"] if scored else [])
 
 
 def test_store_drops_torn_line_and_summarises(tmp_path):

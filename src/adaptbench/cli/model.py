@@ -26,8 +26,26 @@ def add_rollout_options(p) -> None:
     g.add_argument("--max-steps", type=int, help="step budget per episode (default 50; always-ask 50 x (1 + 1/N))")
     g.add_argument("--budget", type=int, help="prompt token budget (oldest steps dropped first; default: the "
                    "model's context less the generation limits)")
+    add_sampling_options(g)
     g.add_argument("--user", choices=["offline", "llm"], default="offline", help="who answers questions")
     g.add_argument("--user-model", help="model directory of the LLM user (default: --model)")
+
+
+RECORDED = "; recorded with each episode: a run with another sample seed into the same --out adds its episodes"
+
+
+def add_sampling_options(g, recorded: str = RECORDED) -> None:
+    """`--temperature` and `--sample-seed`, for every command in which a model samples (docs/llm.md,
+    *Sampling and reproducibility*). Not `--seed`: argparse would take it for `--seeds`, the scene seeds."""
+    from .argtypes import seed, temperature
+
+    g.add_argument("--temperature", type=temperature, default=0.0,
+                   help="sampling temperature of the model's actions and questions (default 0: greedy; an LLM "
+                   "user always answers greedily)")
+    g.add_argument("--sample-seed", type=seed, default=0,
+                   help="seed of the sampling (default 0; used above temperature 0): each episode draws from its "
+                   "own generator, derived from this seed and the episode (agent, persona, task, scene seed) and "
+                   "step, so its samples do not depend on --batch, --workers or order" + recorded)
 
 
 def _fail(msg: str, code: int = 2):
@@ -46,14 +64,20 @@ def _backend(args, model: str):
         if args.backend == "openai":
             plain = getattr(args, "server", "vllm") == "transformers-serve"
             backend = make_backend("openai", url=args.url, model=model, tokenizer=args.tokenizer or model,
-                                   text_prompts=plain, grammar_field=not plain)
+                                   text_prompts=plain, grammar_field=not plain, **_sampling(args))
             backend.probe()
             return backend
-        return make_backend("transformers", model=model, device=args.device, **_cpu_settings(args, model))
+        return make_backend("transformers", model=model, device=args.device, **_cpu_settings(args, model),
+                            **_sampling(args))
     except ImportError as exc:
         _fail(f"{exc}; install the models extra: pip install torch==2.13.0 && pip install -e '.[models]'")
     except (ModelError, FileNotFoundError, OSError, ValueError) as exc:
         _fail(str(exc).splitlines()[0] if str(exc) else type(exc).__name__)
+
+
+def _sampling(args) -> dict:
+    """The backend's temperature and sample seed from the command line (greedy where it has no such options)."""
+    return {"temperature": getattr(args, "temperature", 0.0), "seed": getattr(args, "sample_seed", 0)}
 
 
 def _cpu_settings(args, model: str) -> dict:
@@ -84,7 +108,7 @@ def rollout_options(args, agents: list) -> dict:
 
     if not any(spec(a).resolved_kind() == "model" for a in agents):
         return {}
-    from ..llm.user import LLMUser
+    from ..llm.user import LLMUser, user_config
     from ..runtime.users import OfflineUser
 
     if not args.model:
@@ -109,10 +133,10 @@ def rollout_options(args, agents: list) -> dict:
     if args.user == "llm":
         def make_user(d, p, t):
             return LLMUser(user_backend, d, p, t)
-        user_config = {"user": "llm", **{f"user_{k}": v for k, v in user_backend.config().items()}}
+        users = user_config(user_backend)
     else:
-        make_user, user_config = OfflineUser, {"user": "offline"}
-    return {"backend": backend, "make_user": make_user, "user_config": user_config, "batch": args.batch,
+        make_user, users = OfflineUser, {"user": "offline"}
+    return {"backend": backend, "make_user": make_user, "user_config": users, "batch": args.batch,
             "steps": args.max_steps, "budget": args.budget}
 
 

@@ -143,7 +143,9 @@ def _write_out(path: str, text: str) -> None:
 
 
 def _cmd_eval(args) -> int:
-    records = _load_runs(args).records
+    from ..harness.sampled import by_temperature, sampling_notes
+
+    records = by_temperature(_load_runs(args).records)  # sample seeds averaged, temperatures kept apart
     rows, text, csv_text, md_text = _tables(args, records)
     print(text)
     none = sum(1 for r in records if r.satisfaction_rate is None)
@@ -154,6 +156,8 @@ def _cmd_eval(args) -> int:
 
         for line in notes(rows):
             print(line)
+    for line in sampling_notes(records):
+        print(line)
     if args.plot:
         _plot(args.plot, rows if not args.by else _agent_rows(args, records), records)
     if args.csv:

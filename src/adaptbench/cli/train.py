@@ -49,7 +49,8 @@ def _cmd_data(args) -> int:
         _fail("--teacher-model (an LLM teacher) is not implemented yet; the scripted oracle is the teacher", 1)
     domain = load_domain(args.spec)
     split, personas, tasks, seeds = _selection(args, domain)
-    backend = TransformersBackend(args.student, device=args.device, batch_size=args.batch)
+    backend = TransformersBackend(args.student, device=args.device, batch_size=args.batch,
+                                  temperature=args.temperature, seed=args.sample_seed)
     student = student_policy(backend, domain)
     settings = DataSettings(split, personas, tasks, seeds, args.interactions, args.questions, args.eps1, args.eps2,
                             args.max_length, args.batch)
@@ -93,6 +94,9 @@ def add_data(train_sub) -> None:
     p.add_argument("--max-length", type=positive, default=1024, help="tokens of prompt plus completion per row")
     p.add_argument("--batch", type=positive, default=8, help="episodes stepped together (default 8)")
     p.add_argument("--device", default="cpu")
+    from .model import add_sampling_options
+
+    add_sampling_options(p, "")  # the student's actions and reflection questions
     p.set_defaults(func=_cmd_data)
 
 

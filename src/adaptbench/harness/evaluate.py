@@ -10,6 +10,7 @@ import io
 import math
 
 from .metrics import common_k, pass_k, precision
+from .modelsteps import canonical_counts, canonical_line
 
 
 def load_records(paths, splits=None) -> list:
@@ -58,6 +59,7 @@ def table(records: list, unseen: dict | None = None) -> list:
                 cols[col][1].append(r.questions)
         mine = [r for r in records if r.agent == a]
         rows.append({"agent": a, "episodes": len(mine), "pass_k": pass_k(mine, k), "precision": precision(mine),
+                     "canonical": canonical_counts(mine),
                      "rate_seen": mean_se(cols["seen"][0]), "rate_unseen": mean_se(cols["unseen"][0]),
                      "questions_seen": mean_se(cols["seen"][1]), "questions_unseen": mean_se(cols["unseen"][1])})
     return rows
@@ -111,6 +113,9 @@ def notes(rows: list) -> list:
     if left:
         out.append(f"{left} (agent, persona, task) pair(s) had no applicable preference in any seed and are "
                    "left out of pass^k")
+    line = canonical_line(rows)
+    if line:
+        out.append(line)
     old = sum(r["precision"].unjudged for r in rows)
     if old:
         out.append(f"{old} question(s) in records older than version 2 carry no targets and are not judged "

@@ -29,6 +29,13 @@ VARIANTS = {"never_ask": "never_ask"}  # prompt kind -> grammar variant (default
 THOUGHT_TOKENS = 48
 
 
+def sample_key(view, call: str) -> str:
+    """The random stream of one generation (`Request.key`, `llm.sampling`): the episode id (agent, persona,
+    task, scene seed), the step and the call (`thought`, `action`): an episode's samples do not depend on
+    the batch, the worker or the order it ran in."""
+    return f"{view.episode}/{view.step}/{call}"
+
+
 class _Episode:
     """What the policy remembers of one episode."""
 
@@ -150,12 +157,13 @@ class LLMPolicy(Policy):
         thoughts = [""] * len(views)
         if self.kind == "react":
             todo = [i for i, (_, _, force) in enumerate(prepared) if not force]
-            outs = boundary.generate(self.backend, [Request(texts[i], None, ("\n",), THOUGHT_TOKENS, session=views[i].episode)
-                                          for i in todo])
+            outs = boundary.generate(self.backend, [Request(texts[i], None, ("\n",), THOUGHT_TOKENS, session=views[i].episode,
+                                                    key=sample_key(views[i], "thought")) for i in todo])
             for i, out in zip(todo, outs, strict=True):
                 thoughts[i] = out.text.strip()
                 texts[i] += thoughts[i] + "\n" + ACTION_PREFIX
-        outs = boundary.generate(self.backend, [Request(t, g, (), self.max_tokens, self._parses, v.episode)
+        outs = boundary.generate(self.backend, [Request(t, g, (), self.max_tokens, self._parses, v.episode,
+                                                sample_key(v, "action"))
                                       for t, (_, g, _), v in zip(texts, prepared, views, strict=True)])
         return [self._decision(p, out, force, thought, prep_seconds / len(views))
                 for (p, _, force), out, thought in zip(prepared, outs, thoughts, strict=True)]
@@ -172,4 +180,9 @@ class LLMPolicy(Policy):
                  "prepare_seconds": round(prep, 4), **out.stats}
         if thought:
             stats["thought"] = thought
+        if out.token_ids is not None:  # what the model generated (after the healed prompt: stats["healed"])
+            stats["token_ids"] = list(out.token_ids)
+        over = prompt.meta.get("over_budget", 0)
+        if over:  # the shortest prompt (every older step left out) still exceeds the budget
+            stats["over_budget"], stats["over_budget_tokens"] = True, over
         return Decision(out.text, None, out.text, stats)

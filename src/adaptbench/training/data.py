@@ -4,24 +4,27 @@ Rollouts follow the student (batched over episodes through the backend); at each
 teacher proposes a^t from the student's state; steps where both act the same (same parsed action) and steps
 after two failures in a row are skipped; otherwise the student reflects (or the topic proposer asks), the
 user answers, P(a^t|x), P(a^t|x,q,answer), P(a^s|x) are scored through the backend's `score`, and the
-decision rule (`decide`) picks the chosen completion. Rows go to `pairs.jsonl` as they are made.
+decision rule (`decide`) picks the chosen completion. The rejected answer (the student's own) keeps the
+ids the student generated (`rejected_token_ids`, `training.ids`). Rows go to `pairs.jsonl` as they are made.
 """
 
 from __future__ import annotations
 
 import time
 from collections import Counter
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from ..harness.batches import episode_id
 from ..harness.episode import Episode
 from ..harness.rollout import Job
 from ..llm.backend import Request
 from ..llm.chat import render
+from ..llm.policies import sample_key
 from ..llm.prompts import ACTION_PREFIX
 from ..runtime.env import make_env
 from .dataset import PairStore, mix_line, row_key
 from .decide import EPS1, EPS2, decide
+from .ids import rejected_turn_ids
 from .relabel import (
     ScriptedTeacher,
     answered_prompt,
@@ -31,7 +34,7 @@ from .relabel import (
     topics,
 )
 from .rows import completion_tokens, fit_row
-from .score import step_probabilities
+from .score import SCORE_DTYPE, step_probabilities
 
 PHASES = ("student", "teacher", "reflection", "scoring")
 
@@ -159,7 +162,8 @@ class Builder:
         if self.s.questions == "topics":
             out = [topic_question(self.topics, a_t, v.task_text) for _, v, _, a_t in asks]
         else:
-            reqs = [reflection_request(self.student, v, d.action, a_t, tuple(r.made_after)) for r, v, d, a_t in asks]
+            reqs = [replace(reflection_request(self.student, v, d.action, a_t, tuple(r.made_after)),
+                            key=sample_key(v, "reflection")) for r, v, d, a_t in asks]  # the episode's own stream
             out = [c.text.strip() for c in self.student.backend.generate(reqs)] if reqs else []
         self.times.add("reflection", t0)
         return out
@@ -175,14 +179,20 @@ class Builder:
             t0 = time.perf_counter()
             x = render(tok, prompt)
             xq = render(tok, answered_prompt(self.student, prompt, view, q, answer))
-            probs = step_probabilities(self.student.backend, x, xq, a_t, decision.action)
+            probs = step_probabilities(self.student.backend, x, xq, a_t, decision.action,
+                                       (decision.stats or {}).get("token_ids"), SCORE_DTYPE)
             self.times.add("scoring", t0)
             d = decide(probs.p_teacher, probs.p_teacher_given_answer, probs.p_student, self.s.eps1, self.s.eps2)
             kind, reason = d.kind, d.skip_reason
         chosen = {"question": q, "teacher": a_t}.get(kind)
         fitted, n, cut = fit_row(tok, prompt, completion_tokens(tok, ACTION_PREFIX + decision.action,
                                                                 ACTION_PREFIX + (chosen or "")), self.s.max_length)
-        return self._fields(r, view, decision.action, a_t, q, answer, probs, kind, reason, chosen, fitted, n, cut)
+        ids, canon = rejected_turn_ids(tok, fitted, decision.action, decision.stats)
+        row = self._fields(r, view, decision.action, a_t, q, answer, probs, kind, reason, chosen, fitted, n, cut)
+        row["over_budget"] = bool(fitted.meta.get("over_budget"))  # over max_length even cut to the last step
+        row.update(rejected_token_ids=ids, rejected_canonical=canon,
+                   score_dtype=self.student.backend.score_dtype(SCORE_DTYPE) if probs else None)
+        return row
 
     def _fields(self, r, view, a_s, a_t, q, answer, probs, kind, reason, chosen, fitted, n, cut) -> dict:
         msg = lambda t: [{"role": "assistant", "content": ACTION_PREFIX + t}]  # noqa: E731
