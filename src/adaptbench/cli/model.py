@@ -215,7 +215,7 @@ def _cmd_model_pretrain(args) -> int:
                         budget=args.budget, seed=args.seed,
                         log=(lambda m: None) if args.quiet else (lambda m: print(m, file=sys.stderr)))
     except ImportError as exc:
-        _fail(f"{exc}; install the models extra: pip install torch==2.13.0 && pip install -e '.[models]'")
+        _fail(f"{exc}; install the train extra: pip install torch==2.13.0 && pip install -e '.[train]'")
     except SpecError:
         raise  # a ValueError too: the one handler reports its diagnostics
     except ValueError as exc:

@@ -156,8 +156,8 @@ def sft_config(out, steps: int, lr: float, seed: int = 0, batch: int = 1, warmup
 
 @dataclass(frozen=True)
 class PretrainResult:
-    """What `pretrain` did: labelled steps, episodes used and skipped, sequences, updates, the mean
-    loss over the first and the last (up to) 50 updates' logging windows, and seconds spent training."""
+    """What `pretrain` did: labelled steps, episodes used and skipped, sequences, tokens, updates, the
+    mean loss of the first and of the last (up to) 50 updates, and seconds spent training."""
 
     examples: int
     episodes: int
