@@ -355,9 +355,10 @@ def add_commands(sub) -> None:
     q = msub.add_parser("pretrain", help="fine-tune a model on recorded trajectories rendered with the planner prompt",
                         description="Replays each episode of the results files (oracle or teacher runs) to rebuild "
                                     "the planner's prompt at every step and trains on the recorded action (loss on "
-                                    "the action tokens only). CPU by default.")
+                                    "the action tokens only) with TRL's SFT trainer. CPU by default.")
     add_spec_option(q)
-    q.add_argument("--model", required=True, help="model directory to start from (e.g. from adapt model init)")
+    q.add_argument("--model", required=True, help="model directory to start from (e.g. from adapt model init), or "
+                   "`student` (the shipped student)")
     q.add_argument("--data", required=True, nargs="+", help="results files or globs, e.g. runs/oracle*.jsonl")
     q.add_argument("--out", required=True, help="directory to save the fine-tuned model into")
     q.add_argument("--steps", type=int, default=2000, help="updates, one sequence each: an episode's steps packed, or "
