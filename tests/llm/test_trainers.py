@@ -229,6 +229,22 @@ def test_chain_data_dpo_rollout_on_the_merged_model(tiny, tmp_path):
     assert played.returncode == 0, played.stderr
     rec = json.loads(runs.read_text())
     assert rec["agent_config"]["model"] == str(out / "merged") and rec["n_steps"] == 2
+    _eval_tables_and_figures(tmp_path, runs)
+
+
+def _eval_tables_and_figures(tmp_path, runs):
+    """The chain's last link: `adapt eval` reads the trained model's provenance (OUT/train.json) and puts its
+    records in the Reflection-DPO rows of both tables, with both figures drawn."""
+    pytest.importorskip("matplotlib")
+    md, temporal, questions = tmp_path / "tables.md", tmp_path / "temporal.png", tmp_path / "questions.png"
+    got = _adapt("eval", runs, "--markdown", md, "--plot-temporal", temporal, "--plot-questions", questions)
+    assert got.returncode == 0, got.stderr
+    text = md.read_text()
+    assert "**Table 1**" in text and "**Table 2**" in text
+    dpo_rows = [line for line in text.splitlines() if line.startswith("| reflection-dpo |")]
+    assert len(dpo_rows) == 2 and all("missing" not in line for line in dpo_rows)  # Table 1 and Table 2
+    for png in (temporal, questions):
+        assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
 @pytest.mark.slow
