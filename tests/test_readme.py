@@ -78,10 +78,11 @@ def test_readme_command_2_names_cpu_torch_and_ci_installs_what_it_does():
 
 
 def test_readme_table_has_every_column_adapt_eval_prints():
-    """The README's results table is `adapt eval --markdown` output: every column, pass^k and question
-    precision included, and the line that says which k."""
-    from adaptbench.harness.evaluate import HEADER
+    """The README's results table is `adapt eval --markdown` output: the paper-row column, every column,
+    pass^1 and pass^4 and question precision included, and the line that says which k."""
+    from adaptbench.harness.evaluate import header
 
     readme = (ROOT / "README.md").read_text()
-    assert "| " + " | ".join(HEADER) + " |" in readme
-    assert "pass^k: k=4 for every row" in readme
+    assert "| " + " | ".join(["Paper row", *header((1, 4))]) + " |" in readme
+    assert "k=4 is the most seeds every (method, persona," in readme
+    assert "docs/evaluation.md" in readme

@@ -48,7 +48,8 @@ def test_eval_csv_is_quoted(tmp_path):
     out = tmp_path / "t.csv"
     assert main(["eval", f, "--csv", str(out)]) == 0
     rows = list(csv.reader(out.open()))
-    assert rows[1][0] == 'my, "odd" agent' and len(rows[1]) == len(rows[0])
+    odd = next(r for r in rows if r[0] == "Other methods")
+    assert odd[2] == 'my, "odd" agent' and all(len(r) == len(rows[0]) for r in rows)
 
 
 def test_eval_refuses_mixed_specs(tmp_path, capsys):

@@ -1,4 +1,4 @@
-"""pass^k over scene seeds and question precision (`adapt eval`), and the question targets recorded
+"""pass^k (tau-bench's estimator) over scene seeds and question precision (`adapt eval`), and the question targets recorded
 with each question step (record version 2); older records still read, precision n/a."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ from adaptbench.agents.users import OfflineUser, question_targets
 from adaptbench.cli import main
 from adaptbench.harness.episode import run_episode
 from adaptbench.harness.evaluate import render_csv, render_text, table
-from adaptbench.harness.metrics import pass_k, precision
+from adaptbench.harness.metrics import fully_satisfied, judge_questions, pass_hat_k, pass_k, precision
 from adaptbench.harness.policy import Decision, Policy
 from adaptbench.harness.record import RECORD_VERSION, EpisodeRecord
 from adaptbench.runtime.env import Env
@@ -23,15 +23,30 @@ def _rec(persona, task, seed, rate, violated=0, steps=(), prefs=(), version=RECO
                                     "violated": violated, "steps": list(steps), "preferences": list(prefs)})
 
 
-def test_pass_k_needs_every_seed_and_leaves_out_pairs_without_preferences():
-    recs = [_rec("a", "eggs", 0, 1.0), _rec("a", "eggs", 1, 1.0), _rec("a", "eggs", 2, 1.0),  # passes
-            _rec("b", "eggs", 0, 1.0), _rec("b", "eggs", 1, 0.5, 1), _rec("b", "eggs", 2, 1.0),  # fails one seed
+def test_pass_k_is_taubenchs_estimator_over_persona_task_pairs():
+    """pass^k = mean over (persona, task) of C(c, k) / C(n, k); episodes with nothing applicable are not
+    counted, and a pair with none is left out."""
+    recs = [_rec("a", "eggs", 0, 1.0), _rec("a", "eggs", 1, 1.0), _rec("a", "eggs", 2, 1.0),  # n=3, c=3
+            _rec("b", "eggs", 0, 1.0), _rec("b", "eggs", 1, 0.5, 1), _rec("b", "eggs", 2, 1.0),  # n=3, c=2
             _rec("a", "cereal", 0, None), _rec("a", "cereal", 1, None), _rec("a", "cereal", 2, None)]  # left out
-    pk = pass_k(recs)
-    assert (pk.passed, pk.pairs, pk.k, pk.left_out) == (1, 2, (3, 3), 1)
-    assert pk.rate == 0.5 and pk.k_text == "3"
-    assert pass_k(recs[:5]).k_text == "2-3"
-    assert pass_k([]).rate is None
+    pk = pass_k(recs, (1, 2, 3, 4))
+    assert pk.rate(1) == (1 + 2 / 3) / 2  # the mean success rate
+    assert pk.rate(2) == (1 + 1 / 3) / 2  # C(2,2)/C(3,2) = 1/3
+    assert pk.rate(3) == 0.5 and pk.rate(4) is None  # no pair has 4 episodes
+    assert pk.pairs == (2, 2, 2, 0) and pk.left_out == 1
+    # a pair with fewer episodes counts only for the k it has; an episode with nothing applicable is not one
+    more = recs + [_rec("c", "eggs", 0, 1.0), _rec("c", "eggs", 1, 0.0, 2), _rec("c", "eggs", 2, None)]
+    pk = pass_k(more, (1, 2, 3))
+    assert pk.rate(1) == (1 + 2 / 3 + 1 / 2) / 3 and pk.rate(2) == (1 + 1 / 3 + 0) / 3
+    assert pk.rate(3) == 0.5 and pk.pairs == (3, 3, 2)
+    assert pass_hat_k(4, 2, 2) == 1 / 6 and pass_hat_k(4, 1, 2) == 0.0
+    assert pass_k([]).rate(1) is None
+
+
+def test_success_needs_every_applicable_preference_satisfied():
+    assert fully_satisfied(_rec("a", "eggs", 0, 1.0))
+    assert not fully_satisfied(_rec("a", "eggs", 0, 0.8, 1))
+    assert not fully_satisfied(_rec("a", "eggs", 0, None))  # nothing applied: neither success nor failure
 
 
 def _ask(question, targets=None):
@@ -39,13 +54,20 @@ def _ask(question, targets=None):
     return step if targets is None else {**step, "targets": targets}
 
 
-def test_precision_counts_questions_naming_an_applicable_preference():
-    prefs = [{"id": "p1", "verdict": "satisfied"}, {"id": "p2", "verdict": "inapplicable"}]
-    rec = _rec("a", "eggs", 0, 1.0, steps=[_ask("q1", ["p1"]), _ask("q2", ["p2"]), _ask("q3", []),
-                                           {"action": "Search fridge_0", "ok": True, "observation": ""}],
-               prefs=prefs)
+def test_precision_counts_questions_that_reveal_a_new_applicable_preference():
+    prefs = [{"id": "p1", "verdict": "satisfied"}, {"id": "p2", "verdict": "inapplicable"},
+             {"id": "p3", "verdict": "violated"}]
+    steps = [_ask("q1", ["p1"]),  # precise: p1 applies and is new
+             _ask("q2", ["p2"]),  # off: p2 does not apply to the task
+             _ask("q3", []),  # off: no preference (e.g. where is the milk?)
+             _ask("q4", ["p1"]),  # repeat: p1 is known
+             _ask("q5", ["p1", "p3"]),  # precise: p3 is new
+             {"action": "Search fridge_0", "ok": True, "observation": ""},
+             {"action": 'Ask "q6"', "ok": False, "observation": "", "targets": ["p3"]}]  # failed: not a question
+    rec = _rec("a", "eggs", 0, 0.5, steps=steps, prefs=prefs)
+    assert judge_questions(rec) == ["precise", "off", "off", "repeat", "precise"]
     pr = precision([rec])
-    assert (pr.precise, pr.judged, pr.unjudged) == (1, 3, 0)
+    assert (pr.precise, pr.judged, pr.repeat, pr.off, pr.unjudged) == (2, 5, 1, 2, 0) and pr.rate == 0.4
     old = _rec("a", "eggs", 0, 1.0, steps=[_ask("q1")], prefs=prefs, version=1)
     assert precision([old]).rate is None and precision([old]).unjudged == 1
 
@@ -56,12 +78,13 @@ def test_table_renders_both_metrics_and_na():
     recs.append(_rec("a", "eggs", 0, 1.0, steps=[_ask("q")], prefs=prefs, version=1, agent="old"))
     rows = table(recs)
     text = render_text(rows)
-    assert "pass^k" in text and "Question precision" in text
-    assert "100.0% (1/1, k=1)" in text and "100.0% (2/2)" in text and "n/a" in text  # one k: agent old has 1 seed
+    assert "pass^1" in text and "pass^2" not in text and "Question precision" in text  # agent old has 1 seed
+    assert "100.0% (2/2)" in text and "n/a" in text
     csv_lines = render_csv(rows).splitlines()
-    assert csv_lines[0].endswith("pass_k_left_out,question_precision,questions_precise,questions_judged")
+    assert csv_lines[0].endswith("pass_1,pass_k_pairs,pass_k_left_out,question_precision,questions_precise,"
+                                 "questions_judged,questions_repeat,questions_off")
     x_row = next(line for line in csv_lines if line.startswith("x,"))
-    assert x_row.split(",")[-9:] == ["1", "1", "1", "1", "1", "0", "1", "2", "2"]  # k_min = k_max = 1: one k for all rows
+    assert x_row.split(",")[-8:] == ["1", "1", "0", "1", "2", "2", "0", "0"]
 
 
 class _Asker(Policy):
@@ -120,16 +143,16 @@ def test_any_users_questions_are_judged_by_the_offline_matcher(domain):
     assert asked.reply == "Whatever you like." and pref.id in asked.targets
 
 
-def test_one_k_for_every_row_the_smallest_number_of_seeds_every_pair_has():
-    """Agent a ran seeds 0-2, agent b seeds 0-1: both rows use k=2 (a's seed 2 is not counted), and the
-    table says which k."""
+def test_one_k_for_every_row_the_most_seeds_every_pair_has():
+    """Method a ran seeds 0-2, method b seeds 0-1: both rows show pass^1 and pass^2 (a's from its 3 seeds)."""
     recs = [_rec("p", "eggs", s, 1.0 if s < 2 else 0.5, violated=int(s == 2), agent="a") for s in (0, 1, 2)]
     recs += [_rec("p", "eggs", s, 1.0, agent="b") for s in (0, 1)]
     rows = {r["agent"]: r for r in table(recs)}
-    assert rows["a"]["pass_k"].k_text == rows["b"]["pass_k"].k_text == "2"
-    assert rows["a"]["pass_k"].passed == 1  # failed only in seed 2, which k=2 does not count
+    assert rows["a"]["pass_k"].ks == rows["b"]["pass_k"].ks == (1, 2)
+    assert rows["a"]["pass_k"].rate(2) == 1 / 3 and rows["b"]["pass_k"].rate(2) == 1.0
+    assert table(recs, ks=(3,))[1]["pass_k"].rate(3) is None  # b has no pair with 3 seeds
     from adaptbench.harness.evaluate import notes
 
-    assert any(line.startswith("pass^k: k=2 for every row, the smallest number of scene seeds") for line in
+    assert any("k=2 is the most seeds every (method, persona, task) pair has" in line for line in
                notes(list(rows.values())))
-    assert "100.0% (1/1, k=2)" in render_text(list(rows.values()))
+    assert "33.3%" in render_text(list(rows.values()))

@@ -53,7 +53,7 @@ def test_cli_rollout_then_eval(tmp_path, domain, capsys):
     assert main(["eval", str(out), "--markdown", str(md), "--csv", str(tmp_path / "t.csv")]) == 0
     text = capsys.readouterr().out
     assert "never-ask" in text and "oracle" in text and "Satisfaction (seen)" in text
-    assert md.read_text().startswith("| Method |")
+    assert md.read_text().startswith("**Table 1**\n\n| Paper row | Method |")
 
 
 def test_eval_plot_is_a_png_with_every_agent_and_persona(tmp_path):

@@ -89,10 +89,11 @@ def _summary(res, total: int, out: str) -> None:
         print(f"  error: {line}", file=sys.stderr)
 
 
-def _load_runs(args):
+def _load_runs(args, paths=None):
     from ..harness.records import load_runs, mixed_specs
 
-    runs = load_runs(args.runs, _splits(args))  # a RunsError goes to the one handler: its message, its code
+    paths = paths or args.runs
+    runs = load_runs(paths, _splits(args))  # a RunsError goes to the one handler: its message, its code
     mixed = mixed_specs(runs)
     if mixed and not args.allow_mixed:
         print(f"adapt: {mixed}", file=sys.stderr)
@@ -103,7 +104,7 @@ def _load_runs(args):
         print(f"adapt: note: {runs.unversioned} record(s) predate versioned records (read as version 0)",
               file=sys.stderr)
     if not runs.records:
-        print(f"adapt: no usable episode records in {', '.join(args.runs)}", file=sys.stderr)
+        print(f"adapt: no usable episode records in {', '.join(paths)}", file=sys.stderr)
         raise SystemExit(1)
     return runs
 
@@ -122,16 +123,16 @@ def _splits(args):
 
 
 def _tables(args, records: list) -> tuple:
+    """(rows, text, csv thunk, markdown thunk, notes): a `--by` breakdown, or the paper's tables."""
     if args.by:
         from ..harness import breakdown as b
 
         rows = b.breakdown(records, args.by)
         return (rows, b.render_text(rows, args.by), lambda: b.render_csv(rows, args.by),
-                lambda: b.render_markdown(rows, args.by))
-    from ..harness.evaluate import render_csv, render_markdown, render_text, table
+                lambda: b.render_markdown(rows, args.by), [])
+    from .evaluation import tables
 
-    rows = table(records, _splits(args)() if any(r.split is not None for r in records) else None)
-    return rows, render_text(rows), lambda: render_csv(rows), lambda: render_markdown(rows)
+    return tables(args, records, _splits(args))
 
 
 def _write_out(path: str, text: str) -> None:
@@ -144,22 +145,21 @@ def _write_out(path: str, text: str) -> None:
 
 def _cmd_eval(args) -> int:
     from ..harness.sampled import by_temperature, sampling_notes
+    from . import evaluation
 
-    records = by_temperature(_load_runs(args).records)  # sample seeds averaged, temperatures kept apart
-    rows, text, csv_text, md_text = _tables(args, records)
+    mapped = evaluation.mapping(args)
+    runs = _load_runs(args, evaluation.run_files(args, mapped))
+    records = by_temperature(evaluation.resolve(runs, mapped, _splits(args)))  # seeds averaged, temperatures apart
+    rows, text, csv_text, md_text, lines = _tables(args, records)
     print(text)
     none = sum(1 for r in records if r.satisfaction_rate is None)
     if none and not args.by:
         print(f"{none} episode(s) had no applicable preference and are left out of the satisfaction rates")
-    if not args.by:
-        from ..harness.evaluate import notes
-
-        for line in notes(rows):
-            print(line)
-    for line in sampling_notes(records):
+    for line in [*lines, *sampling_notes(records)]:
         print(line)
     if args.plot:
         _plot(args.plot, rows if not args.by else _agent_rows(args, records), records)
+    evaluation.figures(args, records)
     if args.csv:
         _write_out(args.csv, csv_text() + "\n")
     if args.markdown:
@@ -259,19 +259,26 @@ def add_commands(sub) -> None:
     p.set_defaults(func=_cmd_rollout)
     llm_cli.add_commands(sub)
 
-    p = sub.add_parser("eval", help="print the paper's Table 1 from rollout files",
+    p = sub.add_parser("eval", help="print the paper's Table 1 and Table 2 from rollout files",
                        description="Preference satisfaction rate and questions asked (mean ± standard error) "
-                                   "for seen and unseen personas under the cross-validation splits of spec/splits.yaml.")
-    p.add_argument("runs", nargs="+", help="JSONL files written by adapt rollout")
+                                   "for seen and unseen personas under the cross-validation splits of spec/splits.yaml "
+                                   "(each trained method on the split it was trained on), pass^k and question "
+                                   "precision, in the layout of the paper's Table 1 and Table 2 (definitions: "
+                                   "docs/evaluation.md).")
+    p.add_argument("runs", nargs="*", help="JSONL files written by adapt rollout")
     p.add_argument("--spec", default=default_spec(), help="spec directory whose splits.yaml defines seen/unseen personas "
-                                                  "(read only for records with a `split`; default: spec)")
-    p.add_argument("--csv", help="also write the table as CSV")
-    p.add_argument("--markdown", help="also write the table as Markdown")
+                                                  "(read only for records with a `split`) and whose simulator replays "
+                                                  "episodes for --plot-temporal (default: spec)")
+    p.add_argument("--csv", help="also write the tables as CSV")
+    p.add_argument("--markdown", help="also write the tables as Markdown")
     p.add_argument("--plot", help="also draw satisfaction per agent and per persona (PNG, SVG or PDF by suffix; needs the plots extra)")
     p.add_argument("--by", choices=["task", "persona", "preference"],
                    help="break the results down per task, persona or preference instead of the seen/unseen table")
     p.add_argument("--allow-mixed", action="store_true",
                    help="evaluate results of different spec versions together (refused by default)")
+    from .evaluation import add_options
+
+    add_options(p)
     p.set_defaults(func=_cmd_eval)
 
     p = sub.add_parser("users", help="offline user tools: `adapt users check`")

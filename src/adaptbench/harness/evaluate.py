@@ -1,7 +1,8 @@
-"""Evaluation tables in the paper's Table 1 layout: preference satisfaction rate and questions asked,
-mean ± standard error, for seen and unseen personas under the cross-validation splits of the spec
-(`spec/splits.yaml`: the release's four 12/4 splits; `CompiledDomain.unseen`); then pass^k over scene
-seeds and question precision (`metrics.py`), over all of an agent's episodes."""
+"""Evaluation rows, one per method: preference satisfaction rate and questions asked, mean ± standard
+error, for seen and unseen personas under the cross-validation splits of the spec (`spec/splits.yaml`:
+the release's four 12/4 splits; `CompiledDomain.unseen`); then pass^k over scene seeds and question
+precision (`metrics.py`), over all of a method's episodes. A record's method is its `agent` after
+`methods.Resolver.resolve`; `papertables.py` lays the rows out as the paper's Table 1 and Table 2."""
 
 from __future__ import annotations
 
@@ -42,30 +43,41 @@ def split_of(record, unseen: dict) -> list:
     return ["seen", "unseen"]
 
 
-def table(records: list, unseen: dict | None = None) -> list:
-    """Rows of `EpisodeRecord`s: agent, n, rate seen/unseen (mean, se), questions seen/unseen (mean, se).
-    `unseen` (the domain's splits) is needed only when some record has a `split`."""
-    agents = sorted({r.agent for r in records}, key=lambda a: _order(a))
-    k = common_k(records)  # one k for every row: the smallest number of seeds every pair has
-    rows = []
-    for a in agents:
-        cols = {"seen": ([], []), "unseen": ([], [])}
-        for r in records:
-            if r.agent != a:
-                continue
-            for col in split_of(r, unseen or {}):
-                if r.satisfaction_rate is not None:
-                    cols[col][0].append(r.satisfaction_rate)
-                cols[col][1].append(r.questions)
-        mine = [r for r in records if r.agent == a]
-        rows.append({"agent": a, "episodes": len(mine), "pass_k": pass_k(mine, k), "precision": precision(mine),
-                     "canonical": canonical_counts(mine),
-                     "rate_seen": mean_se(cols["seen"][0]), "rate_unseen": mean_se(cols["unseen"][0]),
-                     "questions_seen": mean_se(cols["seen"][1]), "questions_unseen": mean_se(cols["unseen"][1])})
-    return rows
+def table(records: list, unseen: dict | None = None, ks: tuple | None = None) -> list:
+    """Rows of `EpisodeRecord`s, one per method (`record.agent`): method, episodes, rate seen/unseen (mean,
+    se), questions seen/unseen (mean, se), pass^k for each k in `ks` (default: 1 and the largest k every
+    pair has, `default_ks`), question precision and the splits the records were evaluated on. `unseen`
+    (the domain's splits) is needed only when some record has a `split`."""
+    ks = ks or default_ks(records)
+    by_method: dict = {}
+    for r in records:
+        by_method.setdefault(r.agent, []).append(r)
+    return [_row(a, by_method[a], unseen or {}, ks) for a in sorted(by_method, key=_order)]
 
 
-_PAPER_ORDER = ["never-ask", "baseline", "react", "star-gate", "reflection-dpo", "always-ask", "oracle", "teacher"]
+def default_ks(records: list) -> tuple:
+    """(1, K) with K the smallest number of counted episodes every (method, persona, task) pair has; (1,)
+    when that is 1 or there is none."""
+    k = common_k(records)
+    return (1, k) if k and k > 1 else (1,)
+
+
+def _row(method: str, mine: list, unseen: dict, ks: tuple) -> dict:
+    cols = {"seen": ([], []), "unseen": ([], [])}
+    for r in mine:
+        for col in split_of(r, unseen):
+            if r.satisfaction_rate is not None:
+                cols[col][0].append(r.satisfaction_rate)
+            cols[col][1].append(r.questions)
+    return {"agent": method, "episodes": len(mine), "pass_k": pass_k(mine, ks), "precision": precision(mine),
+            "canonical": canonical_counts(mine),
+            "rate_seen": mean_se(cols["seen"][0]), "rate_unseen": mean_se(cols["unseen"][0]),
+            "questions_seen": mean_se(cols["seen"][1]), "questions_unseen": mean_se(cols["unseen"][1]),
+            "splits": tuple(sorted({r.split for r in mine if r.split is not None}))}
+
+
+_PAPER_ORDER = ["never-ask-llm", "never-ask", "planner", "baseline", "react", "star-gate", "reflection-dpo",
+                "no-reflection", "no-dpo", "always-ask-llm", "always-ask", "teacher", "oracle"]
 
 
 def _order(agent: str) -> tuple:
@@ -81,13 +93,23 @@ def _num(ms) -> str:
 
 
 HEADER = ["Method", "Episodes", "Satisfaction (seen)", "Satisfaction (unseen)", "Questions (seen)",
-          "Questions (unseen)", "pass^k", "Question precision"]
+          "Questions (unseen)"]
+METRICS_HEADER = ["Question precision"]
 
 
-def _pass_k(pk) -> str:
-    if pk.rate is None:
-        return "n/a"
-    return f"{pk.rate * 100:.1f}% ({pk.passed}/{pk.pairs}, k={pk.k_text})"
+def header(ks: tuple) -> list:
+    """Column titles of rows computed with pass^k for `ks`."""
+    return HEADER + [f"pass^{k}" for k in ks] + METRICS_HEADER
+
+
+def ks_of(rows: list) -> tuple:
+    """The k values the rows were computed with ((1,) for no rows)."""
+    return rows[0]["pass_k"].ks if rows else (1,)
+
+
+def _pass(pk, k: int) -> str:
+    rate = pk.rate(k)
+    return "n/a" if rate is None else f"{rate * 100:.1f}%"
 
 
 def _precision(pr) -> str:
@@ -96,22 +118,23 @@ def _precision(pr) -> str:
 
 def cells(row: dict) -> list:
     """The printable cells of a row."""
-    return [row["agent"], str(row["episodes"]), _pct(row["rate_seen"]), _pct(row["rate_unseen"]),
-            _num(row["questions_seen"]), _num(row["questions_unseen"]), _pass_k(row["pass_k"]),
-            _precision(row["precision"])]
+    return ([row["agent"], str(row["episodes"]), _pct(row["rate_seen"]), _pct(row["rate_unseen"]),
+             _num(row["questions_seen"]), _num(row["questions_unseen"])]
+            + [_pass(row["pass_k"], k) for k in row["pass_k"].ks] + [_precision(row["precision"])])
 
 
 def notes(rows: list) -> list:
-    """Lines said under the table: pairs left out of pass^k, questions in records too old to judge."""
+    """Lines said under the table: which k, pairs left out of pass^k, questions in records too old to judge."""
     out = []
-    ks = {r["pass_k"].k_text for r in rows if r["pass_k"].k_text}
-    if len(ks) == 1:
-        k = ks.pop()
-        out.append(f"pass^k: k={k} for every row, the smallest number of scene seeds every (agent, persona, task) "
-                   f"pair has; a pair with more seeds counts its first {k}")
+    ks = ks_of(rows)
+    if rows:
+        out.append("pass^k (tau-bench): the chance that k scene seeds of a (persona, task) pair all satisfy every "
+                   f"applicable preference, averaged over pairs; k={max(ks)} is the most seeds every (method, persona, "
+                   "task) pair has" if max(ks) > 1 else "pass^1: the share of episodes satisfying every applicable "
+                   "preference (some (method, persona, task) pair has one seed, so no larger k for every row)")
     left = sum(r["pass_k"].left_out for r in rows)
     if left:
-        out.append(f"{left} (agent, persona, task) pair(s) had no applicable preference in any seed and are "
+        out.append(f"{left} (method, persona, task) pair(s) had no applicable preference in any seed and are "
                    "left out of pass^k")
     line = canonical_line(rows)
     if line:
@@ -125,22 +148,35 @@ def notes(rows: list) -> list:
 
 def render_text(rows: list) -> str:
     """A fixed-width table."""
-    data = [HEADER] + [cells(r) for r in rows]
-    widths = [max(len(r[i]) for r in data) for i in range(len(HEADER))]
-    return "\n".join("  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)) for r in data)
+    return fixed_width([header(ks_of(rows))] + [cells(r) for r in rows])
+
+
+def fixed_width(data: list) -> str:
+    """Rows of cells as left-aligned columns."""
+    widths = [max(len(r[i]) for r in data) for i in range(len(data[0]))]
+    return "\n".join("  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)).rstrip() for r in data)
+
+
+def markdown(data: list) -> str:
+    """Rows of cells (the first the header) as a Markdown table."""
+    lines = ["| " + " | ".join(data[0]) + " |", "|" + "---|" * len(data[0])]
+    return "\n".join(lines + ["| " + " | ".join(r) + " |" for r in data[1:]])
 
 
 def render_markdown(rows: list) -> str:
     """A Markdown table."""
-    lines = ["| " + " | ".join(HEADER) + " |", "|" + "---|" * len(HEADER)]
-    lines += ["| " + " | ".join(cells(r)) + " |" for r in rows]
-    return "\n".join(lines)
+    return markdown([header(ks_of(rows))] + [cells(r) for r in rows])
 
 
 CSV_HEADER = ["agent", "episodes", "rate_seen", "rate_seen_se", "rate_unseen", "rate_unseen_se", "questions_seen",
-              "questions_seen_se", "questions_unseen", "questions_unseen_se", "pass_k", "pass_k_passed",
-              "pass_k_pairs", "k_min", "k_max", "pass_k_left_out", "question_precision", "questions_precise",
-              "questions_judged"]
+              "questions_seen_se", "questions_unseen", "questions_unseen_se"]
+METRICS_CSV_HEADER = ["pass_k_pairs", "pass_k_left_out", "question_precision", "questions_precise",
+                      "questions_judged", "questions_repeat", "questions_off"]
+
+
+def csv_header(ks: tuple) -> list:
+    """CSV column names of rows computed with pass^k for `ks`."""
+    return CSV_HEADER + [f"pass_{k}" for k in ks] + METRICS_CSV_HEADER
 
 
 def csv_text(header: list, rows: list) -> str:
@@ -153,13 +189,17 @@ def csv_text(header: list, rows: list) -> str:
     return buf.getvalue().rstrip("\n")
 
 
+def csv_cells(row: dict) -> list:
+    """The CSV values of a row (numbers; None where there is nothing to average)."""
+    return [row["agent"], row["episodes"], *row["rate_seen"], *row["rate_unseen"], *row["questions_seen"],
+            *row["questions_unseen"], *_metric_cells(row)]
+
+
 def render_csv(rows: list) -> str:
     """CSV with numeric columns (empty where there is nothing to average)."""
-    return csv_text(CSV_HEADER, [[r["agent"], r["episodes"], *r["rate_seen"], *r["rate_unseen"], *r["questions_seen"],
-                                  *r["questions_unseen"], *_metric_cells(r)] for r in rows])
+    return csv_text(csv_header(ks_of(rows)), [csv_cells(r) for r in rows])
 
 
 def _metric_cells(row: dict) -> list:
     pk, pr = row["pass_k"], row["precision"]
-    k = pk.k or (None, None)
-    return [pk.rate, pk.passed, pk.pairs, *k, pk.left_out, pr.rate, pr.precise, pr.judged]
+    return [*pk.rates, max(pk.pairs, default=0), pk.left_out, pr.rate, pr.precise, pr.judged, pr.repeat, pr.off]

@@ -1,54 +1,57 @@
-"""Episode-set metrics beyond the mean satisfaction rate (`adapt eval` shows them per agent).
+"""Episode-set metrics beyond the mean satisfaction rate (`adapt eval` shows them per method).
 
-- pass^k over scene seeds: the share of (agent, persona, task) pairs whose episodes are fully
-  satisfied (every applicable preference satisfied, none violated) in all k seeds; `adapt eval` uses ONE k
-  for every row, the smallest number of seeds every (agent, persona, task) pair has (`common_k`), each
-  pair counting its first k seeds (lowest seed numbers), and says which k under the table. Pairs in which no
-  preference applied in any episode are left out and counted; episodes with no applicable
-  preference inside a counted pair are ignored.
-- question precision: the share of questions whose answer named a preference that applies to the
-  task (a question step's `targets` meets the record's preferences with a verdict other than
-  `inapplicable`). Records written before version 2 carry no targets: n/a.
+- SUCCESS of an episode: at least one preference applied and every applicable preference was satisfied
+  (p- = 0, p+ >= 1). A task component left unfinished violates the preferences about it (the paper's
+  rule), so an episode that gives up on a part of the task with a preference does not succeed. Episodes
+  in which no preference applied are neither successes nor failures: they are left out.
+- pass^k, tau-bench's estimator: for each (method, persona, task) pair with n counted episodes (scene
+  seeds) of which c succeeded, pass^k = C(c, k) / C(n, k), the chance that k episodes drawn without
+  replacement all succeed; the row's pass^k is the mean over its pairs with n >= k. pass^1 is the mean
+  success rate. `adapt eval` shows pass^1 and pass^K, K = the smallest n every pair of the whole table has
+  (`common_k`), so rows compare; `--pass-k 1,2,4` picks others. Pairs with no counted episode are left
+  out and counted.
+- question precision: the share of questions (a successful `Ask`) whose answer revealed a preference
+  that applies to the task and was not yet known: the question's `targets` (the preferences the
+  offline user's matcher answered from, recorded since record version 2) include a preference whose
+  verdict is not `inapplicable` and that no earlier question of the episode targeted. The other
+  questions are counted as `repeat` (only preferences already asked about) or `off` (no applicable
+  preference: chit-chat, world-state questions, preferences of other tasks). Records older than version 2
+  carry no targets: their questions are not judged (n/a).
 """
 
 from __future__ import annotations
 
-from collections import defaultdict
+from collections import Counter, defaultdict
 from dataclasses import dataclass
+from math import comb
 
 
 @dataclass(frozen=True)
 class PassK:
-    """pass^k of one agent: pairs passing in every seed, pairs counted, the seeds per pair (min, max)
-    and the pairs left out (no applicable preference)."""
+    """pass^k of one method for each k in `ks`: `rates[i]` (None where no pair has k episodes) over
+    `pairs[i]` pairs; `left_out`: pairs with no episode in which a preference applied."""
 
-    passed: int
-    pairs: int
-    k: tuple
+    ks: tuple
+    rates: tuple
+    pairs: tuple
     left_out: int
 
-    @property
-    def rate(self):
-        """passed / pairs, or None when no pair counts."""
-        return self.passed / self.pairs if self.pairs else None
-
-    @property
-    def k_text(self) -> str:
-        """'3', or '2-3' when pairs have different numbers of seeds; '' when there are none."""
-        if not self.k:
-            return ""
-        lo, hi = self.k
-        return str(lo) if lo == hi else f"{lo}-{hi}"
+    def rate(self, k: int):
+        """pass^k, or None (no pair has k counted episodes, or k was not computed)."""
+        return self.rates[self.ks.index(k)] if k in self.ks else None
 
 
 @dataclass(frozen=True)
 class Precision:
-    """Question precision of one agent: questions naming an applicable preference, questions judged,
-    and questions in records without targets (older than version 2, not judged)."""
+    """Question precision of one method: questions that revealed a new applicable preference, questions
+    judged, those that only repeated known preferences, those with no applicable preference, and
+    questions in records without targets (older than version 2, not judged)."""
 
     precise: int
     judged: int
     unjudged: int
+    repeat: int = 0
+    off: int = 0
 
     @property
     def rate(self):
@@ -61,30 +64,42 @@ def fully_satisfied(record) -> bool:
     return record.satisfaction_rate is not None and not record.violated and record.satisfaction_rate == 1
 
 
+def outcomes(records: list) -> dict:
+    """(persona, task) -> (n, c): counted episodes (some preference applied) and successes; pairs with no
+    counted episode map to (0, 0)."""
+    out = {}
+    for r in records:
+        n, c = out.get((r.persona, r.task), (0, 0))
+        counted = r.satisfaction_rate is not None
+        out[(r.persona, r.task)] = (n + counted, c + (counted and fully_satisfied(r)))
+    return out
+
+
 def common_k(records: list) -> int | None:
-    """The smallest number of seeds every (agent, persona, task) pair of `records` has (None for no records):
-    the one k of pass^k for a whole table, so its rows compare."""
-    seeds = defaultdict(set)
+    """The smallest number of counted episodes every (method, persona, task) pair of `records` has (pairs
+    with none left out; None when there is no counted episode): the largest k every row can be judged on."""
+    per = defaultdict(int)
     for r in records:
-        seeds[(r.agent, r.persona, r.task)].add(r.seed)
-    return min((len(s) for s in seeds.values()), default=None)
+        if r.satisfaction_rate is not None:
+            per[(r.agent, r.persona, r.task)] += 1
+    return min(per.values(), default=None)
 
 
-def pass_k(records: list, k: int | None = None) -> PassK:
-    """pass^k of one agent's episode records (see the module docstring); with `k`, each pair counts only its
-    first k seeds (the lowest), so every pair and every agent is judged on the same number of seeds."""
-    pairs = defaultdict(list)
-    for r in records:
-        pairs[(r.persona, r.task)].append(r)
-    if k is not None:
-        for key, recs in pairs.items():
-            keep = set(sorted({r.seed for r in recs}, key=lambda s: (s is None, s))[:k])
-            pairs[key] = [r for r in recs if r.seed in keep]
-    counted = {key: [r for r in recs if r.satisfaction_rate is not None] for key, recs in pairs.items()}
-    counted = {key: recs for key, recs in counted.items() if recs}
-    seeds = [len({r.seed for r in pairs[key]}) for key in counted]
-    passed = sum(1 for recs in counted.values() if all(fully_satisfied(r) for r in recs))
-    return PassK(passed, len(counted), (min(seeds), max(seeds)) if seeds else (), len(pairs) - len(counted))
+def pass_hat_k(n: int, c: int, k: int) -> float:
+    """C(c, k) / C(n, k): the chance that k of the n episodes, drawn without replacement, all succeed."""
+    return comb(c, k) / comb(n, k)
+
+
+def pass_k(records: list, ks=(1,)) -> PassK:
+    """pass^k of one method's episode records for each k in `ks` (see the module doc)."""
+    pairs = outcomes(records)
+    counted = [(n, c) for n, c in pairs.values() if n]
+    rates, used = [], []
+    for k in ks:
+        values = [pass_hat_k(n, c, k) for n, c in counted if n >= k]
+        rates.append(sum(values) / len(values) if values else None)
+        used.append(len(values))
+    return PassK(tuple(ks), tuple(rates), tuple(used), len(pairs) - len(counted))
 
 
 def applicable(record) -> set:
@@ -92,15 +107,21 @@ def applicable(record) -> set:
     return {p.get("id") for p in record.preferences if p.get("verdict") != "inapplicable"}
 
 
+def judge_questions(record) -> list:
+    """'precise', 'repeat', 'off' or None (no targets recorded) for each question of the episode, in order."""
+    ids, known, out = applicable(record), set(), []
+    for step in (s for s in record.steps if s.is_question):
+        if step.targets is None:
+            out.append(None)
+            continue
+        hit = ids & set(step.targets)
+        out.append("precise" if hit - known else "repeat" if hit else "off")
+        known |= hit
+    return out
+
+
 def precision(records: list) -> Precision:
-    """Question precision of one agent's episode records (see the module docstring)."""
-    precise = judged = unjudged = 0
-    for r in records:
-        ids = applicable(r)
-        for step in (s for s in r.steps if s.is_question):
-            if step.targets is None:
-                unjudged += 1
-                continue
-            judged += 1
-            precise += bool(ids & set(step.targets))
-    return Precision(precise, judged, unjudged)
+    """Question precision of one method's episode records (see the module doc)."""
+    counts = Counter(v for r in records for v in judge_questions(r))
+    judged = counts["precise"] + counts["repeat"] + counts["off"]
+    return Precision(counts["precise"], judged, counts[None], counts["repeat"], counts["off"])

@@ -1,5 +1,7 @@
-"""Plots of evaluation results with matplotlib (the `plots` extra): satisfaction per agent on seen and
-unseen personas with standard errors and the questions asked, and a persona x agent heat map.
+"""Plots of evaluation results with matplotlib (the `plots` extra): satisfaction per method on seen and
+unseen personas with standard errors and the questions asked, and a persona x method heat map (`draw`);
+the paper's temporal figure (`draw_temporal`) and questions asked against applicable preferences
+(`draw_questions`).
 
 The file type follows the suffix (`.png`, `.svg`, `.pdf`); without matplotlib, `PlotsUnavailable` says
 how to install it.
@@ -10,7 +12,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..errors import AdaptError
-from .evaluate import mean_se
+from .evaluate import _order, mean_se
 
 INSTALL = "pip install 'adaptbench[plots]'"
 
@@ -28,6 +30,11 @@ def _pyplot():
     import matplotlib.pyplot as plt
 
     return plt
+
+
+def require() -> None:
+    """PlotsUnavailable (how to install matplotlib) when the plots extra is missing."""
+    _pyplot()
 
 
 def _bars(ax, rows: list) -> None:
@@ -88,3 +95,82 @@ def draw(rows: list, records: list, path: Path) -> None:
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
+
+
+def _save(fig, plt, path: Path) -> None:
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def draw_temporal(curves: dict, path: Path) -> None:
+    """The paper's temporal figure (`temporal.py`): for each method (`curves`: method -> [Curve]), the mean
+    satisfaction reached at each % of the interaction, counting only the preferences satisfied at the end
+    (left: as a satisfaction rate, ending at the method's final rate; right: as a fraction of its final
+    score, ending at 1), with a band of ± one standard error."""
+    from .temporal import mean_curve
+
+    plt = _pyplot()
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
+    for ax, normalised in zip(axes, (False, True), strict=True):
+        for method in sorted(curves, key=_order):
+            pts = [p for p in mean_curve(curves[method], normalised) if p[1] is not None]
+            if not pts:
+                continue
+            xs = [100 * x for x, *_ in pts]
+            ms = [m for _, m, _, _ in pts]
+            ses = [se for _, _, se, _ in pts]
+            line, = ax.plot(xs, ms, label=f"{method} (n={max(n for *_, n in pts)})")
+            ax.fill_between(xs, [m - s for m, s in zip(ms, ses, strict=True)],
+                            [m + s for m, s in zip(ms, ses, strict=True)], color=line.get_color(), alpha=0.15)
+        ax.set_xlabel("% of the interaction")
+        ax.set_xlim(0, 100)
+        ax.set_ylim(0, 1.05)
+        ax.grid(alpha=0.3)
+    axes[0].set_ylabel("preference satisfaction rate so far")
+    axes[0].set_title("Satisfaction over the interaction")
+    axes[1].set_ylabel("fraction of the final score")
+    axes[1].set_title("Fraction of the final score reached")
+    axes[0].legend(fontsize=8, loc="upper left")
+    _save(fig, plt, path)
+
+
+def questions_by_applicable(records: list) -> dict:
+    """method -> [(applicable preferences, mean questions, standard error, episodes)], per number of
+    applicable preferences (p+ + p-) in the episode; episodes with none are left out."""
+    groups: dict = {}
+    for r in records:
+        n = _applicable(r)
+        if n:
+            groups.setdefault(r.agent, {}).setdefault(n, []).append(r.questions)
+    return {m: [(n, *mean_se(qs), len(qs)) for n, qs in sorted(g.items())] for m, g in groups.items()}
+
+
+def _applicable(record) -> int:
+    if record.satisfied is not None and record.violated is not None:
+        return int(record.satisfied) + int(record.violated)
+    return sum(p.get("verdict") != "inapplicable" for p in record.preferences)
+
+
+def draw_questions(records: list, path: Path) -> None:
+    """Questions asked against the number of applicable preferences (the paper's Figure "questions"): per
+    method, the mean questions (± standard error) of the episodes with each count, and the identity
+    line (one question per applicable preference)."""
+    plt = _pyplot()
+    data = questions_by_applicable(records)
+    fig, ax = plt.subplots(figsize=(6.5, 4.2))
+    top = 1
+    methods = sorted(data, key=_order)
+    for i, method in enumerate(methods):
+        pts = data[method]
+        dodge = 0.08 * (i - (len(methods) - 1) / 2)  # methods with the same numbers stay visible side by side
+        ax.errorbar([p[0] + dodge for p in pts], [p[1] for p in pts], yerr=[p[2] for p in pts], marker="o",
+                    capsize=3, label=f"{method} ({sum(p[3] for p in pts)} episodes)")
+        top = max(top, *(p[0] for p in pts))
+    ax.plot([0, top], [0, top], color="grey", linestyle=":", linewidth=1, label="one question per preference")
+    ax.set_xlabel("applicable preferences in the episode")
+    ax.set_ylabel("questions asked (mean ± s.e.)")
+    ax.set_title("Questions asked vs. applicable preferences")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    _save(fig, plt, path)

@@ -30,6 +30,7 @@ class Runs:
     """Usable episode records, what was skipped and why, and the spec hashes found in each file."""
 
     records: list = field(default_factory=list)  # EpisodeRecord, in file order
+    sources: list = field(default_factory=list)  # the file each record was read from (parallel to records)
     skipped: Counter = field(default_factory=Counter)
     hashes: dict = field(default_factory=dict)  # file -> Counter of spec hashes
     unversioned: int = 0  # records written before records carried a version (read as version 0)
@@ -90,6 +91,7 @@ def load_runs(paths, splits=None) -> Runs:
                 hashes[record.spec_hash] += 1
                 runs.unversioned += record.version == 0
                 runs.records.append(record)
+                runs.sources.append(str(p))
             tail = p.read_bytes()[-1:]
         except OSError as exc:
             raise RunsError(f"cannot read {p} ({exc.strerror})", 2) from None

@@ -65,6 +65,7 @@ class LLMPolicy(Policy):
                              f"context ({self.context} tokens): use --budget {max(self.context - self._reserved(), 0)} "
                              "or less (prompts are cut to the budget), or a model with a longer context")
         self._episodes: dict = {}
+        self.priors: dict = {}  # episode id -> what is known about the user beforehand (the prompt's prior line)
 
     def _reserved(self) -> int:
         """Tokens a step may generate after its prompt (ReAct: a thought, then the action)."""
@@ -95,6 +96,7 @@ class LLMPolicy(Policy):
     def end(self, episode: str) -> None:
         """Forget the episode (and the backend's cache of it)."""
         self._episodes.pop(episode, None)
+        self.priors.pop(episode, None)
         self.backend.release(episode)
 
     def _state(self, episode: str, view) -> _Episode:
@@ -126,7 +128,8 @@ class LLMPolicy(Policy):
             ep.made_after.append(tuple(view.made))
         force = self.force_ask(view)
         prefs, unmet = self._knowledge(ep)
-        kw = {"preferences": prefs, "unmet": unmet, "force_ask": force, "made_after": tuple(ep.made_after)}
+        kw = {"preferences": prefs, "unmet": unmet, "force_ask": force, "made_after": tuple(ep.made_after),
+              "prior": self.priors.get(view.episode, "")}
         prompt = fit(self.backend.tokenizer, lambda omit: self.builder.prompt(view, omit=omit, **kw), self.budget)
         self._check_fits(prompt)
         text = ep.grammar.update(view.observed)

@@ -18,7 +18,8 @@ TRAINABLE = ("question", "teacher")
 FIELDS = ("prompt", "chosen", "rejected", "kind", "skip_reason", "teacher_action", "student_action", "question",
           "answer", "question_source", "p_teacher", "p_teacher_given_answer", "p_student", "delta_q", "delta_t",
           "eps1", "eps2", "prompt_tokens", "truncated", "spec_hash", "split", "persona", "task", "seed",
-          "interaction", "step", "student_model", "teacher", "rejected_token_ids", "rejected_canonical", "score_dtype")
+          "interaction", "step", "prior", "student_model", "teacher", "teacher_model", "rejected_token_ids",
+          "rejected_canonical", "score_dtype")
 
 
 def row_key(row: dict) -> tuple:

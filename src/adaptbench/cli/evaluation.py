@@ -1,0 +1,123 @@
+"""The paper's parts of `adapt eval` (wired in `cli/runs.py`): which method each record belongs to
+(`--method NAME[@SPLIT]=FILE`, provenance files), Table 1 / Table 2 with `--paper`, pass^k for
+`--pass-k`, and the temporal and questions figures (`--plot-temporal`, `--plot-questions`)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+
+def _fail(msg: str, code: int) -> None:
+    print(f"adapt: {msg}", file=sys.stderr)
+    raise SystemExit(code)
+
+
+def ks(text: str) -> tuple:
+    """`--pass-k 1,2,4`: distinct whole numbers >= 1, ascending."""
+    try:
+        values = sorted({int(x) for x in text.split(",") if x.strip()})
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{text}' is not a list of whole numbers like 1,2,4") from None
+    if not values or values[0] < 1:
+        raise argparse.ArgumentTypeError(f"'{text}': each k must be at least 1")
+    return tuple(values)
+
+
+def mapping(args) -> dict:
+    """The `--method` mapping (FILE -> (method, split)); exit 2 on a malformed item."""
+    from ..harness.methods import MethodError, parse_mapping
+
+    try:
+        return parse_mapping(args.method)
+    except MethodError as exc:
+        _fail(str(exc), 2)
+
+
+def run_files(args, mapped: dict) -> list:
+    """The results files to read: the positional ones, then the `--method` files not among them."""
+    given = list(args.runs)
+    known = {str(Path(p).resolve()) for p in given}
+    given += [f for f in mapped if f not in known]
+    if not given:
+        _fail("give results files (adapt eval runs/*.jsonl) or --method NAME=FILE", 2)
+    return given
+
+
+def resolve(runs, mapped: dict, unseen) -> list:
+    """The records relabelled with their method and the split they were evaluated on (`methods`); exit 1
+    on an unreadable provenance file or a split the spec does not have."""
+    from ..harness.methods import MethodError, Resolver
+
+    resolver = Resolver(mapped)
+    try:
+        records = [resolver.resolve(r, src) for r, src in zip(runs.records, runs.sources, strict=True)]
+    except MethodError as exc:
+        _fail(str(exc), 1)
+    splits = {r.split for r in records if r.split is not None}
+    if splits:
+        bad = sorted(splits - set(unseen()))
+        if bad:
+            _fail(f"split {', '.join(map(str, bad))} (from --method or a model's training.json) is not in the spec's "
+                  f"splits.yaml (splits: {', '.join(map(str, unseen())) or 'none'})", 1)
+    return records
+
+
+def tables(args, records: list, unseen) -> tuple:
+    """(rows, text, csv thunk, markdown thunk, notes) of the paper layout."""
+    from ..harness import papertables as pt
+    from ..harness.evaluate import notes, table
+    from ..harness.methods import mixed_models
+
+    rows = table(records, unseen() if any(r.split is not None for r in records) else None, args.pass_k)
+    lines = pt.notes(rows) + notes(rows) + mixed_models(records)
+    return (rows, pt.render_text(rows, args.paper), lambda: pt.render_csv(rows),
+            lambda: "\n\n".join([pt.render_markdown(rows, args.paper), *lines]), lines)
+
+
+def figures(args, records: list) -> None:
+    """Write the temporal and questions figures asked for."""
+    from ..errors import AdaptError
+    from ..harness import plots
+
+    if not (args.plot_temporal or args.plot_questions):
+        return
+    plots.require()  # PlotsUnavailable before any replay
+    try:
+        if args.plot_temporal:
+            plots.draw_temporal(_curves(args, records), Path(args.plot_temporal))
+        if args.plot_questions:
+            plots.draw_questions(records, Path(args.plot_questions))
+    except AdaptError:
+        raise  # PlotsUnavailable: the one handler prints it
+    except (OSError, ValueError) as exc:
+        _fail(f"cannot write the plot ({getattr(exc, 'strerror', None) or exc})", 1)
+
+
+def _curves(args, records: list) -> dict:
+    from ..compiler import load_domain
+    from ..harness.temporal import replay_all
+
+    replays = replay_all(records, load_domain(args.spec))
+    if replays.skipped:
+        print(f"adapt: {replays.skipped_text()}", file=sys.stderr)
+    if not replays.curves:
+        _fail("no episode could be replayed for the temporal figure (records of another spec? pass its --spec)", 1)
+    return replays.curves
+
+
+def add_options(p) -> None:
+    """The paper options of `adapt eval`."""
+    p.add_argument("--method", action="append", default=[], metavar="NAME[@SPLIT]=FILE",
+                   help="every record in FILE is method NAME (e.g. reflection-dpo@1=runs/dpo1.jsonl: trained on "
+                        "split 1); repeatable. Without it a record's method is its model's training.json method, "
+                        "else its agent (docs/evaluation.md)")
+    p.add_argument("--paper", action="store_true", help="print the paper's published numbers beside ours")
+    p.add_argument("--pass-k", type=ks, metavar="K[,K...]",
+                   help="the k of pass^k (default: 1 and the most scene seeds every method, persona and task has)")
+    p.add_argument("--plot-temporal", metavar="PATH",
+                   help="draw the paper's temporal figure (satisfaction over the interaction, per method; replays "
+                        "the episodes in --spec)")
+    p.add_argument("--plot-questions", metavar="PATH",
+                   help="draw questions asked against applicable preferences, per method")
