@@ -58,3 +58,16 @@ def test_cli_builds_a_student(tmp_path, capsys):
     assert not any(r["questions"] for r in lines if r["agent"] == "oracle")
     assert Path(out / "model.safetensors").is_file()
     assert main(["model", "student", "--out", str(out), "--split", "9"]) == 2
+
+
+def test_train_commands_take_the_shipped_students_name():
+    """`--student student` (adapt train data) and `--model student` (the trainers, GRPO) name the shipped
+    checkpoint, as `adapt rollout --model student` does."""
+    from types import SimpleNamespace
+
+    from adaptbench.cli.train import _check_data_args
+    from adaptbench.llm.named import named_path
+
+    args = SimpleNamespace(student="student", teacher_model=None, workers=1, device="cpu")
+    _check_data_args(args)
+    assert args.student == str(named_path("student"))

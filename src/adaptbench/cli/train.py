@@ -65,7 +65,11 @@ def _teacher(args, domain, student_backend):
 
 
 def _check_data_args(args) -> None:
-    """Usage errors of `adapt train data` before anything heavy is imported."""
+    """Usage errors of `adapt train data` before anything heavy is imported (a shipped model's name, such
+    as `student`, is resolved to its directory first)."""
+    from ..llm.named import resolve_model
+
+    args.student, args.teacher_model = resolve_model(args.student), resolve_model(args.teacher_model)
     _model_dir(args.student, "--student")
     if args.teacher_model:
         _model_dir(args.teacher_model, "--teacher-model")
@@ -129,7 +133,7 @@ def add_data(train_sub) -> None:
                                          "(running again resumes), then OUT/dataset/ and OUT/summary.json.")
     add_spec_option(p)
     p.add_argument("--split", help="split id of spec/splits.yaml (its unseen personas are left out)")
-    p.add_argument("--student", required=True, help="the student's model directory")
+    p.add_argument("--student", required=True, help="the student's model directory, or `student` for the shipped tiny student")
     p.add_argument("--out", required=True, help="output directory")
     p.add_argument("--personas", default="all", help="'all' or comma-separated training persona ids")
     p.add_argument("--tasks", default="all", help="'all' or comma-separated task ids")

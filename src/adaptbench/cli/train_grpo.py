@@ -47,6 +47,9 @@ def _cmd_grpo(args) -> int:
         print("adapt: train grpo needs --temperature above 0 (a group of identical greedy rollouts has no "
               "advantage to learn from)", file=sys.stderr)
         return 2
+    from ..llm.named import resolve_model
+
+    args.model = resolve_model(args.model)  # `student`: the shipped tiny student
     if not (Path(args.model) / "config.json").is_file():
         print(f"adapt: {args.model} is not a model directory (no config.json); build one with "
               "`adapt model init --out DIR`", file=sys.stderr)

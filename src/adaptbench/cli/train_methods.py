@@ -35,13 +35,16 @@ def _cmd(method: str):
         if missing:
             print(f"adapt: train {method} needs {', '.join(missing)}: pip install -e '.[train]'", file=sys.stderr)
             return 1
+        from dataclasses import replace
         from pathlib import Path
 
+        from ..llm.named import resolve_model
         from ..training.trainers import METHODS, train
         from ..training.trainers.config import given_flags, load_settings
 
         cls = METHODS[method]
         s = load_settings(cls, given_flags(args, cls), args.config)
+        s = replace(s, model=resolve_model(s.model))  # `student`: the shipped tiny student
         if not (Path(s.model) / "config.json").is_file():
             print(f"adapt: --model {s.model} is not a model directory (no config.json)", file=sys.stderr)
             return 2
