@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from adaptbench.agents.plans import all_recipes, defaults, execute
-from adaptbench.agents.scripted import interpret, play
+from adaptbench.agents.plans import all_recipes, choice_points, defaults, execute
+from adaptbench.agents.scripted import Oracle, departures, interpret, play
 from adaptbench.agents.users import OfflineUser
 from adaptbench.compiler.model import Persona, Preference
 from adaptbench.compiler.rules import parse_rule
@@ -92,3 +92,19 @@ def test_a_component_without_recipe_is_said_not_skipped_silently(domain, capsys)
     play("never-ask", env)
     err = capsys.readouterr().err
     assert err.count("no recipe for component toast") == 1  # once per domain, on stderr
+
+
+def test_oracle_ask_asks_where_its_plan_departs_from_the_defaults_then_acts_as_the_oracle(domain):
+    env, ev = _run(domain, "oracle-ask")
+    plain, oracle = _run(domain, "oracle")
+    task = domain.task["toast_coffee"]
+    best = Oracle(domain, task, _zed(domain), 0, False).search()
+    expected = departures(domain, best, choice_points(domain, all_recipes(domain, task)))
+    asked = [e.text[5:-1] for e in env.world.trace if e.text.startswith("Ask ")]
+    # oat milk in coffee, the patio, the drink first: three choices only the persona could tell
+    assert sorted(asked) == sorted(set(expected)) and len(asked) == 3, asked
+    assert env.world.trace[0].text.startswith("Ask ")  # planning choices (where, drink first) before anything else
+    assert [e.text for e in env.world.trace if not e.text.startswith("Ask ")] == [e.text for e in plain.world.trace]
+    assert ev.satisfied == oracle.satisfied == 3 and ev.questions == 3
+    never_env, _ = _run(domain, "never-ask")
+    assert not any(e.text.startswith("Ask ") for e in never_env.world.trace)

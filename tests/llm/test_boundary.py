@@ -178,5 +178,6 @@ def test_score_heals_the_continuations(domain, spaced_backend):
     whole = b.encode(text + "Look for eggs")
     head = b.encode(text[:-1])
     direct = b.score(text[:-1], [" Look for eggs"])[0]
-    assert len(got.logprobs) == len(whole) - len(head) and got.logprobs == direct.logprobs
+    assert len(got.logprobs) == len(whole) - len(head) + 1 and got.logprobs == direct.logprobs  # + the end token
+    assert got.token_ids == direct.token_ids
     assert all(math.isfinite(x) for x in got.logprobs)

@@ -215,7 +215,7 @@ def test_grouped_heads_left_to_sdpa_give_the_same_logits_and_the_switch_is_resto
     import torch
     from transformers import DynamicCache
 
-    from adaptbench.llm.decode import GQA_FLAG, grouped_heads
+    from adaptbench.llm.decode import GQA_FLAG, cache_arg, grouped_heads
 
     monkeypatch.delenv(GQA_FLAG, raising=False)
     model = _sharp(tiny).model
@@ -229,9 +229,10 @@ def test_grouped_heads_left_to_sdpa_give_the_same_logits_and_the_switch_is_resto
     def logits():
         with torch.no_grad():
             cache = DynamicCache(config=model.config)
-            model(input_ids=ids[:, :30], attention_mask=mask[:, :30], position_ids=pos[:, :30], past_key_values=cache)
-            return model(input_ids=ids[:, 30:], attention_mask=mask, position_ids=pos[:, 30:], past_key_values=cache,
-                         cache_position=torch.arange(30, 40)).logits
+            model(input_ids=ids[:, :30], attention_mask=mask[:, :30], position_ids=pos[:, :30],
+                  **cache_arg(model, cache))
+            return model(input_ids=ids[:, 30:], attention_mask=mask, position_ids=pos[:, 30:],
+                         cache_position=torch.arange(30, 40), **cache_arg(model, cache)).logits
 
     plain = logits()
     with grouped_heads(model):
@@ -239,3 +240,31 @@ def test_grouped_heads_left_to_sdpa_give_the_same_logits_and_the_switch_is_resto
         grouped = logits()
     assert GQA_FLAG not in os.environ
     assert torch.allclose(plain, grouped, atol=1e-5)
+
+
+@pytest.mark.parametrize("loop", [True, False], ids=["decode-loop", "model.generate"])
+def test_a_rollout_raises_no_deprecation_warning_from_transformers(domain, tiny, tmp_path, loop):
+    """Issue 17 item 8: a short rollout on both generation paths with FutureWarning and DeprecationWarning
+    turned into errors (transformers 5.2x warns on every forward pass given `past_key_values=`; its
+    `deprecate_kwarg` names the caller, torch's Module, as the warning's place, so no module filter)."""
+    import json
+    import warnings
+
+    from adaptbench.agents.users import OfflineUser
+    from adaptbench.harness.batches import rollout_policy
+    from adaptbench.harness.rollout import Job
+    from adaptbench.llm.hf import TransformersBackend
+    from adaptbench.llm.policies import LLMPolicy
+
+    backend = TransformersBackend(str(tiny))
+    backend.loop = loop
+    policy = LLMPolicy(backend, domain, "planner", max_tokens=12)
+    jobs = [Job("planner", p, "eggs", 0) for p in ("juan", "miranda")]
+    out = tmp_path / "w.jsonl"
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", FutureWarning)
+        warnings.simplefilter("error", DeprecationWarning)
+        res = rollout_policy(jobs, out, domain, policy, OfflineUser, batch=2, progress=False, steps=3)
+    recs = [json.loads(line) for line in out.read_text().splitlines()]
+    assert res.errors == 0, [r.get("error") for r in recs]
+    assert len(recs) == 2 and all(len(r["steps"]) == 3 for r in recs)

@@ -110,14 +110,18 @@ def test_scores_match_an_unbatched_forward_pass(domain, backend):
 
     prompt = render(backend.tokenizer, PromptBuilder(domain, "planner").prompt(play(domain)[0].view()))
     conts = ["Look for eggs", "Declare Done", 'Ask "Would you like milk in your scrambled eggs today?"', "x"]
+    from adaptbench.llm.chat import end_token
+
     got = backend.score(prompt, conts)
     p = backend.encode(prompt)
     for s, c in zip(got, conts, strict=True):
-        ids = p + backend.encode(c)
+        cont = backend.encode(c) + [end_token(backend.tokenizer)]  # a text is scored as a whole answer
+        ids = p + cont
         with torch.no_grad():
             logits = backend.model(input_ids=torch.tensor([ids])).logits[0].float()
         logp = torch.log_softmax(logits, -1)
-        want = [logp[len(p) - 1 + j, t].item() for j, t in enumerate(backend.encode(c))]
+        want = [logp[len(p) - 1 + j, t].item() for j, t in enumerate(cont)]
+        assert s.token_ids == tuple(cont)
         assert s.logprobs == pytest.approx(want, abs=2e-4)
         assert 0 < s.mean_prob < 1
-    assert got[0].mean_prob == pytest.approx(sum(torch.tensor(got[0].logprobs).exp().tolist()) / 3)
+    assert got[0].mean_prob == pytest.approx(sum(torch.tensor(got[0].logprobs).exp().tolist()) / 4)

@@ -50,6 +50,38 @@ def test_generate_validates_and_retries_once(domain, tiny, server):
         assert ob.retries == 2 and all(o.accepted is False and o.stats["tries"] == 2 for o in outs)
 
 
+def test_sampled_requests_carry_a_seed_from_their_key_else_from_the_run(domain, tiny, backend):
+    from dataclasses import replace
+
+    from adaptbench.llm.backend import request_seed
+    from adaptbench.llm.openai_backend import OpenAIBackend
+
+    from .fake_server import serve
+
+    srv, url = serve(backend)
+    try:
+        ob = OpenAIBackend(url, "tiny", str(tiny), temperature=1.0, seed=5)
+        assert ob.config()["sample_seed"] == 5
+        req = replace(_request(domain, ob.tokenizer, runtime_index(domain).parser), validate=None, grammar=None)
+        keyed = replace(req, key="planner/juan/eggs/0/4/action")
+        others = [replace(req, key=f"other/{i}") for i in range(3)]
+        alone, in_batch = ob.generate([keyed])[0], ob.generate([others[0], keyed, *others[1:]])[1]
+        assert alone.text == in_batch.text  # the episode's step: the same seed, so the same sample, in any batch
+        assert srv.bodies[0]["seed"] == request_seed(5, keyed.key) and srv.bodies[0]["temperature"] == 1.0
+        srv.bodies.clear()
+        two = [o.text for o in ob.generate([req]) + ob.generate([req])]
+        run_seeds = [b["seed"] for b in srv.bodies]
+        assert two[0] != two[1] and run_seeds[0] != run_seeds[1]  # keyless: the run's next seeds
+        srv.bodies.clear()
+        OpenAIBackend(url, "tiny", str(tiny), temperature=1.0, seed=5).generate([req, req])
+        assert sorted(b["seed"] for b in srv.bodies) == sorted(run_seeds)  # ... the same in a new run
+        srv.bodies.clear()
+        OpenAIBackend(url, "tiny", str(tiny)).generate([keyed])
+        assert "seed" not in srv.bodies[0] and srv.bodies[0]["temperature"] == 0.0  # greedy: no seed sent
+    finally:
+        srv.shutdown()
+
+
 def test_score_matches_the_transformers_backend(domain, tiny, backend, server):
     from adaptbench.llm.openai_backend import OpenAIBackend
 
@@ -68,3 +100,22 @@ def test_unreachable_server_is_a_clear_error(tiny):
     ob = OpenAIBackend("http://127.0.0.1:9/v1", "tiny", str(tiny), timeout=2)
     with pytest.raises(ServerError, match="127.0.0.1:9"):
         ob.generate([Request("<|bos|>x", None, (), 2)])
+
+
+def test_completions_carry_the_servers_token_ids_and_score_them(domain, tiny, backend, server):
+    """vLLM's `return_token_ids`: the served completion's ids (EOS included) are the local backend's, and
+    scoring them gives the local scores; with text the end token is scored as well."""
+    from adaptbench.llm.openai_backend import OpenAIBackend
+
+    url, enforce = server
+    ob = OpenAIBackend(url, "tiny", str(tiny))
+    req = _request(domain, ob.tokenizer, runtime_index(domain).parser)
+    out = ob.generate([req])[0]
+    if enforce:
+        local = backend.generate([req])[0]
+        assert out.token_ids == local.token_ids and out.token_ids[-1] == ob.tokenizer.eos_token_id
+        assert out.stats["canonical"] == local.stats["canonical"]
+    (served,) = ob.score(req.prompt, [out.token_ids])
+    (mine,) = backend.score(req.prompt, [out.token_ids])
+    assert served.token_ids == mine.token_ids == out.token_ids
+    assert served.logprobs == pytest.approx(mine.logprobs, abs=2e-4)

@@ -1,4 +1,5 @@
-"""`adapt model pretrain`: replaying records into planner prompts, and a few updates on the tiny model."""
+"""`adapt model pretrain`: replaying records into planner prompts, TRL's SFT trainer on the actions only, and a
+few updates on the tiny model that `adapt rollout` then loads."""
 
 from __future__ import annotations
 
@@ -21,7 +22,7 @@ def _oracle_record(domain, task="eggs", seed=0):
 
 
 def test_examples_replay_the_record(domain, backend):
-    from adaptbench.llm.pretrain import IGNORE, examples, replay_views
+    from adaptbench.training.pretrain import IGNORE, examples, replay_views
 
     rec = _oracle_record(domain)
     views = replay_views(domain, rec)
@@ -41,8 +42,8 @@ def test_examples_replay_the_record(domain, backend):
 
 def test_an_episode_is_packed_into_one_sequence(domain, backend):
     from adaptbench.llm.chat import render
-    from adaptbench.llm.pretrain import IGNORE, examples, replay_views
     from adaptbench.llm.prompts import PromptBuilder
+    from adaptbench.training.pretrain import IGNORE, examples, replay_views
 
     rec = _oracle_record(domain)
     (ids, labels), = examples(domain, [rec], backend.tokenizer)[0]
@@ -56,17 +57,50 @@ def test_an_episode_is_packed_into_one_sequence(domain, backend):
     assert labels[:n].count(tok.eos_token_id) == 4 and labels == [t if t == IGNORE else ids[i] for i, t in enumerate(labels)]
 
 
-def test_cli_pretrain_saves_a_loadable_model(domain, tiny, tmp_path, capsys):
+def test_trl_loss_is_the_mean_nll_of_the_action_tokens(domain, backend, tiny, tmp_path):
+    import torch
     from transformers import AutoModelForCausalLM
+    from trl import SFTTrainer
 
+    from adaptbench.training.pretrain import IGNORE, completion_dataset, examples, sft_config
+
+    (ids, labels), = examples(domain, [_oracle_record(domain)], backend.tokenizer)[0]
+    model = AutoModelForCausalLM.from_pretrained(tiny, dtype=torch.float32)
+    trainer = SFTTrainer(model=model, args=sft_config(tmp_path, 1, 1e-3), processing_class=backend.tokenizer,
+                         train_dataset=completion_dataset([(ids, labels)]))
+    batch = trainer.data_collator([trainer.train_dataset[0]])
+    assert batch["input_ids"][0].tolist() == ids and batch["labels"][0].tolist() == labels  # nothing cut, prompt masked
+    with torch.no_grad():
+        loss = trainer.compute_loss(model, batch).item()
+        logits = model(input_ids=torch.tensor([ids])).logits[0, :-1]
+    where = torch.tensor(labels[1:]) != IGNORE
+    expected = torch.nn.functional.cross_entropy(logits[where], torch.tensor(labels[1:])[where]).item()
+    assert abs(loss - expected) < 1e-4, (loss, expected)
+
+
+def test_cli_pretrain_saves_a_model_rollout_loads(domain, tiny, tmp_path, capsys):
     from adaptbench.cli import main
 
     data = tmp_path / "oracle.jsonl"
     data.write_text(json.dumps(_oracle_record(domain)) + "\n" + "not json\n")
     out = tmp_path / "pre"
     assert main(["model", "pretrain", "--model", str(tiny), "--data", str(data), "--out", str(out),
-                 "--steps", "3", "--budget", "1500", "--quiet"]) == 0
-    assert "trained on" in capsys.readouterr().out
-    AutoModelForCausalLM.from_pretrained(out)
+                 "--steps", "3", "--budget", "1500", "--quiet", "--lr", "1e-2"]) == 0
+    said = capsys.readouterr()
+    assert "trained on" in said.out and "for 3 updates" in said.out and "{'loss'" not in said.out + said.err
+    assert not (out / "trainer").exists()
+    trained = _weights(out)
+    assert any((trained[k] != v).any() for k, v in _weights(tiny).items())  # the updates changed the weights
+    runs = tmp_path / "r.jsonl"
+    assert main(["rollout", "--agent", "planner", "--model", str(out), "--personas", "juan", "--tasks", "eggs",
+                 "--seeds", "0", "--max-steps", "3", "--out", str(runs), "--quiet"]) == 0
+    rec = json.loads(runs.read_text().splitlines()[0])
+    assert rec["agent"] == "planner" and len(rec["steps"]) == 3 and all(s["completion"] for s in rec["steps"])
     assert main(["model", "pretrain", "--model", str(tiny), "--data", str(tmp_path / "none.jsonl"),
                  "--out", str(out)]) == 2
+
+
+def _weights(path):
+    from safetensors.torch import load_file
+
+    return load_file(str(path / "model.safetensors"))

@@ -40,7 +40,9 @@ def _direct(model, tok, prompt: str, action: str) -> float:
     import torch
 
     p = tok(prompt, add_special_tokens=False)["input_ids"]
-    a = tok(action, add_special_tokens=False)["input_ids"]
+    from adaptbench.llm.chat import end_token
+
+    a = action if isinstance(action, list) else tok(action, add_special_tokens=False)["input_ids"] + [end_token(tok)]
     with torch.no_grad():
         logits = model(input_ids=torch.tensor([p + a])).logits[0].float()
     logp = torch.log_softmax(logits, -1)
@@ -71,6 +73,10 @@ def test_delta_batched_equals_direct_forward(backend, domain):
     assert probs.p_teacher == pytest.approx(_direct(model, tok, x, teacher), abs=1e-5)
     assert probs.p_student == pytest.approx(_direct(model, tok, x, own), abs=1e-5)
     assert probs.p_teacher_given_answer == pytest.approx(_direct(model, tok, xq, teacher), abs=1e-5)
+    generated = d.stats["token_ids"]  # on-policy: the student's own action is scored on the ids it generated
+    on_policy = step_probabilities(backend, x, xq, teacher, d.action, generated)
+    assert on_policy.p_student == pytest.approx(_direct(model, tok, x, generated), abs=1e-5)
+    assert on_policy.p_teacher == probs.p_teacher
 
 
 @SKIP_MODELS
@@ -121,6 +127,29 @@ def test_resume_after_kill_and_provenance(tiny, tmp_path):
         assert r["rejected"][0]["role"] == "assistant" and r["prompt"][0]["role"] == "system"
     summary = json.loads((out / "summary.json").read_text())
     assert summary["pairs"] == len(rows) and "steps:" in done.stdout
+    # the tiny model's shortest prompt exceeds --max-length 600: every row kept, flagged and counted
+    assert all(r["over_budget"] is True for r in rows) and summary["over_budget"] == len(rows)
+    assert f"{len(rows)} still over --max-length" in done.stdout
+    _check_rejected_ids(tiny, rows, summary)
+
+
+def _check_rejected_ids(tiny, rows, summary):
+    """Every row keeps the student's generated ids for its rejected answer, laid out as a DPO trainer cuts
+    a completion after the prompt's generation prompt, and the summary counts them and the score dtype."""
+    from transformers import AutoTokenizer
+
+    tok = AutoTokenizer.from_pretrained(tiny)
+    for r in rows:
+        ids = r["rejected_token_ids"]
+        assert ids and isinstance(r["rejected_canonical"], bool)
+        opening = tok.apply_chat_template(r["prompt"], tokenize=False, add_generation_prompt=True)
+        turn = tok.apply_chat_template(r["prompt"] + r["rejected"], tokenize=False)[len(opening):]
+        assert tok.decode(ids) == turn  # the same text, in the ids the student took
+        assert r["rejected_canonical"] == (ids == tok(turn, add_special_tokens=False)["input_ids"])
+    counts = summary["rejected_ids"]
+    assert counts["canonical"] + counts["non_canonical"] == len(rows) and counts["unknown"] == 0
+    scored = [r for r in rows if r["p_student"] is not None]
+    assert all(r["score_dtype"] == "float32" for r in scored) and summary["score_dtypes"] == (["float32"] if scored else [])
 
 
 def test_store_drops_torn_line_and_summarises(tmp_path):
@@ -136,3 +165,119 @@ def test_store_drops_torn_line_and_summarises(tmp_path):
     again.append(row | {"step": 1})
     s = summarise(again.rows)
     assert s["pairs"] == 2 and s["skip_reasons"] == {"same_action": 2} and s["dropped"] == 0
+
+
+# ---------------------------------------------------------------- issue 15 item 1: two interactions, LLM teacher, workers
+def test_prior_summary_keeps_what_the_user_answered_from_a_preference(domain):
+    from adaptbench.training.prior import learnt, prior_summary
+
+    ep, _ = play(domain, steps=("Look for eggs", 'Ask "How do you like your eggs?"', 'Ask "how do you like your eggs?"',
+                                'Ask "Where are the eggs?"', "Open fridge_0"))
+    pairs = learnt(ep.steps)
+    assert [q for q, _, _ in pairs] == ["How do you like your eggs?"]  # asked twice: once; where-is: nothing learnt
+    assert "scrambled_or_omelette" in pairs[0][2]
+    text = prior_summary(ep)
+    assert 'You asked "How do you like your eggs?"' in text and "scrambled or as an omelette" in text
+    assert "Where are the eggs" not in text and "prepare eggs for breakfast" in text
+    nothing, _ = play(domain, steps=("Look for eggs", 'Ask "Where are the eggs?"'))
+    assert prior_summary(nothing) == ""
+
+
+def _asking_student(backend, domain, question='Ask "How do you like your eggs?"'):
+    """The real student, except that it asks `question` at the first step of every first interaction (the random
+    tiny model never asks), its prompt kept."""
+    from dataclasses import replace
+
+    from adaptbench.training.relabel import student_policy
+
+    student = student_policy(backend, domain)
+    own = student.act_batch
+
+    def act_batch(views):
+        return [replace(d, action=question) if v.step == 0 and v.episode.endswith("/i1") else d
+                for v, d in zip(views, own(views), strict=True)]
+    student.act_batch = act_batch
+    return student
+
+
+@SKIP_MODELS
+def test_second_interaction_prompt_carries_the_first_interactions_summary(backend, domain, tmp_path):
+    from adaptbench.training.data import Builder, DataSettings
+
+    settings = DataSettings(1, ("juan",), ("eggs",), (0,), interactions=2, questions="topics", max_length=None,
+                            width=1, max_steps=3)
+    store = PairStore(tmp_path)
+    Builder(domain, _asking_student(backend, domain), settings, store, "tiny").run()
+    by = {i: [r for r in store.rows if r["interaction"] == i] for i in (1, 2)}
+    assert [r["step"] for r in by[1]] == [0, 1, 2] and [r["step"] for r in by[2]] == [0, 1, 2]
+    for r in by[1]:
+        assert r["prior"] == "" and "You have no prior information about the user." in r["prompt"][0]["content"]
+    assert by[1][0]["student_action"] == 'Ask "How do you like your eggs?"'
+    for r in by[2]:
+        system = r["prompt"][0]["content"]
+        assert r["prior"] and r["prior"] in system and "no prior information" not in system
+        assert 'You asked "How do you like your eggs?"' in system and "scrambled or as an omelette" in system
+
+
+@SKIP_MODELS
+def test_llm_teacher_sees_the_preferences_and_the_unmet_ones_and_acts_under_the_grammar(backend, domain):
+    from dataclasses import replace
+
+    from adaptbench.training.relabel import LLMTeacher
+
+    teacher = LLMTeacher(backend, domain, "tiny-dir")
+    ep, _ = play(domain, steps=("Look for eggs", "Open fridge_0"))
+    teacher.start(ep.id, ep.env)
+    view = ep.view()
+    (a_t,) = teacher.actions([view])
+    assert teacher.policy.index.parser.parse(a_t) is not None  # a^t is an action of the grammar
+    prompt, _, _ = teacher.policy._prepare(replace(view, episode=teacher._key(view.episode)))
+    system, last = prompt.messages[0]["content"], prompt.messages[-1]["content"]
+    prefs = [p.text for p in domain.persona["juan"].preferences]
+    assert all(p in system for p in prefs)  # privileged: every preference of the persona
+    assert "Preferences not yet met:" in last  # the verifier's unmet ones, reminded at this step
+    assert teacher.name == "llm" and teacher.model == "tiny-dir"
+    teacher.end(ep.id)
+
+
+def _cmd2(tiny, out, *extra):
+    return [sys.executable, "-m", "adaptbench.cli", "train", "data", "--student", str(tiny), "--out", str(out),
+            "--personas", "sarah,ron,lisa,maya", "--tasks", "eggs", "--split", "1", "--batch", "1",
+            "--max-length", "600", "--max-steps", "3", "--interactions", "2", "--questions", "topics", *extra]
+
+
+@SKIP_MODELS
+def test_workers_llm_teacher_two_interactions_whole_process_resume(tiny, tmp_path):
+    out = tmp_path / "data"
+    cmd = _cmd2(tiny, out, "--teacher-model", str(tiny), "--workers", "2")
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
+    pairs = out / "pairs.jsonl"
+    deadline = time.time() + 180
+    while time.time() < deadline and proc.poll() is None and (not pairs.is_file() or not pairs.read_text().strip()):
+        time.sleep(0.2)
+    os.kill(proc.pid, signal.SIGKILL)  # the parent: its workers die with it
+    proc.wait()
+    first = len(pairs.read_text().splitlines())
+    assert first >= 1 and not (out / "summary.json").exists()
+    done = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    rows = [json.loads(x) for x in pairs.read_text().splitlines()]
+    keys = [(r["persona"], r["task"], r["seed"], r["interaction"], r["step"]) for r in rows]
+    assert len(keys) == len(set(keys)) == 4 * 2 * 3 > first  # 4 personas x 2 interactions x 3 steps, each once
+    assert {(r["persona"], r["interaction"]) for r in rows} == {(p, i) for p in ("sarah", "ron", "lisa", "maya")
+                                                                for i in (1, 2)}
+    for r in rows:
+        assert r["teacher"] == "llm" and r["teacher_model"] == str(tiny) and set(FIELDS) <= set(r)
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["teacher"] == "llm" and summary["interactions"] == 2 and summary["pairs"] == 24
+
+
+@SKIP_MODELS
+def test_train_data_bad_teacher_model_and_gpu_workers_are_one_line(tiny, tmp_path):
+    bad = subprocess.run(_cmd2(tiny, tmp_path / "d", "--teacher-model", str(tmp_path)), capture_output=True,
+                         text=True, timeout=120)
+    assert bad.returncode == 2 and bad.stderr.strip().splitlines()[-1].startswith("adapt: --teacher-model")
+    assert "Traceback" not in bad.stderr
+    gpu = subprocess.run(_cmd2(tiny, tmp_path / "d", "--workers", "2", "--device", "cuda"), capture_output=True,
+                         text=True, timeout=120)
+    assert gpu.returncode == 2 and "--workers above 1" in gpu.stderr and "Traceback" not in gpu.stderr

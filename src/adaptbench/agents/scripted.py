@@ -6,6 +6,10 @@
 - `never-ask`: the same planner with the recipes' sensible defaults and no questions.
 - `always-ask`: asks the user at every choice point that has a question (as its action; the reply
   comes back in the view's history) and follows the answers.
+- `oracle-ask`: the oracle's plan, with the question of every choice point where that plan departs from
+  the defaults (what an agent without the persona could not have known) asked first: the planning
+  choices' at the start, a recipe's just before the recipe. The teacher-with-questions of the student's
+  pretraining data.
 
 All of them explore like a real agent: they `Look for` things before using them, and they read only
 what they have found (`View.seen`). Each emits one action per `act`; `harness.episode` runs the loop.
@@ -24,7 +28,7 @@ from ..runtime.env import Env
 from ..runtime.users import words
 from .plans import PLAN, Executor, all_recipes, choice_points, defaults, execute, feedback, task_recipes
 
-AGENTS = ("oracle", "never-ask", "always-ask")
+AGENTS = ("oracle", "never-ask", "always-ask", "oracle-ask")
 
 
 class ScriptedPolicy(Policy):
@@ -349,7 +353,48 @@ class OraclePolicy(ScriptedPolicy):
         self._plans.pop(episode, None)
 
 
-POLICIES = {"oracle": OraclePolicy, "never-ask": NeverAsk, "always-ask": AlwaysAsk}
+class OracleAskPolicy(OraclePolicy):
+    """The oracle's plan, asking first where it departs from the defaults: before acting on a choice it
+    could only know from the persona, it asks that choice's question (each question once per episode),
+    then carries the plan out as the oracle does (the answers do not change the plan)."""
+
+    name = "oracle-ask"
+
+    def plan(self, view: View):
+        """The questions of the choices the plan changes, each before the recipe that uses it."""
+        return self._steps(self.domain.task[view.task], self._plans[view.episode], view.seen)
+
+    def _steps(self, task: Task, assignment: dict, seen):
+        d = self.domain
+        ex, asked = Executor(d, task, assignment, seen), set()
+        recipes = task_recipes(d, task, assignment)
+        yield from self._ask(ex, departures(d, assignment, [(f"{PLAN}.{c.id}", c) for c in d.planning]), asked)
+        for recipe in recipes:
+            points = [(f"{recipe.id}.{c.id}", c) for c in recipe.choices]
+            if not recipe.optional or any(assignment.get(k) for k, c in points if c.multi):
+                yield from self._ask(ex, departures(d, assignment, points), asked)
+            yield from ex.run_recipe(recipe)
+        yield from ex.act("Declare Done")
+
+    @staticmethod
+    def _ask(ex: Executor, questions, asked: set):
+        for q in questions:
+            if q not in asked:
+                asked.add(q)
+                yield from ex.act(f'Ask "{q}"')
+
+
+def departures(domain: CompiledDomain, assignment: dict, points) -> list:
+    """The questions of the choice points (key, Choice) whose value in `assignment` is not the default."""
+    out = []
+    for key, c in points:
+        default = c.default if c.multi else c.default[0]
+        if c.ask and key in assignment and assignment[key] != default:
+            out.append(c.ask)
+    return out
+
+
+POLICIES = {"oracle": OraclePolicy, "never-ask": NeverAsk, "always-ask": AlwaysAsk, "oracle-ask": OracleAskPolicy}
 
 
 def make_policy(agent: str, domain: CompiledDomain) -> ScriptedPolicy:

@@ -31,6 +31,19 @@ def positive(text: str) -> int:
     return value
 
 
+def temperature(text: str) -> float:
+    """A sampling temperature: a finite number >= 0 (0: greedy)."""
+    import math
+
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{text}' is not a temperature (a number >= 0; 0 is greedy)") from None
+    if not math.isfinite(value) or value < 0:
+        raise argparse.ArgumentTypeError(f"temperature {text} must be a finite number >= 0 (0 is greedy)")
+    return value
+
+
 def read_lines(path: str) -> list:
     """The non-blank, non-comment lines of a text file ('-' for stdin). Exits 2 with a message when the
     file cannot be read or is not UTF-8 text."""

@@ -10,7 +10,8 @@ from pathlib import Path
 def add_rollout_options(p) -> None:
     """The model options of `adapt rollout` (used by the LLM agents only)."""
     g = p.add_argument_group("language-model agents (planner, teacher, react, never-ask-llm, always-ask-llm)")
-    g.add_argument("--model", help="model directory (save_pretrained), or the served model's name with --backend openai")
+    g.add_argument("--model", help="model directory (save_pretrained), `student` (the tiny student shipped in the "
+                   "package, docs/training.md), or the served model's name with --backend openai")
     g.add_argument("--backend", choices=["transformers", "openai"], default="transformers", help="default transformers")
     g.add_argument("--url", default="http://localhost:8000/v1", help="OpenAI-compatible server (--backend openai)")
     g.add_argument("--tokenizer", help="local tokenizer directory for --backend openai (default: --model)")
@@ -25,8 +26,26 @@ def add_rollout_options(p) -> None:
     g.add_argument("--max-steps", type=int, help="step budget per episode (default 50; always-ask 50 x (1 + 1/N))")
     g.add_argument("--budget", type=int, help="prompt token budget (oldest steps dropped first; default: the "
                    "model's context less the generation limits)")
+    add_sampling_options(g)
     g.add_argument("--user", choices=["offline", "llm"], default="offline", help="who answers questions")
     g.add_argument("--user-model", help="model directory of the LLM user (default: --model)")
+
+
+RECORDED = "; recorded with each episode: a run with another sample seed into the same --out adds its episodes"
+
+
+def add_sampling_options(g, recorded: str = RECORDED) -> None:
+    """`--temperature` and `--sample-seed`, for every command in which a model samples (docs/llm.md,
+    *Sampling and reproducibility*). Not `--seed`: argparse would take it for `--seeds`, the scene seeds."""
+    from .argtypes import seed, temperature
+
+    g.add_argument("--temperature", type=temperature, default=0.0,
+                   help="sampling temperature of the model's actions and questions (default 0: greedy; an LLM "
+                   "user always answers greedily)")
+    g.add_argument("--sample-seed", type=seed, default=0,
+                   help="seed of the sampling (default 0; used above temperature 0): each episode draws from its "
+                   "own generator, derived from this seed and the episode (agent, persona, task, scene seed) and "
+                   "step, so its samples do not depend on --batch, --workers or order" + recorded)
 
 
 def _fail(msg: str, code: int = 2):
@@ -45,14 +64,20 @@ def _backend(args, model: str):
         if args.backend == "openai":
             plain = getattr(args, "server", "vllm") == "transformers-serve"
             backend = make_backend("openai", url=args.url, model=model, tokenizer=args.tokenizer or model,
-                                   text_prompts=plain, grammar_field=not plain)
+                                   text_prompts=plain, grammar_field=not plain, **_sampling(args))
             backend.probe()
             return backend
-        return make_backend("transformers", model=model, device=args.device, **_cpu_settings(args, model))
+        return make_backend("transformers", model=model, device=args.device, **_cpu_settings(args, model),
+                            **_sampling(args))
     except ImportError as exc:
         _fail(f"{exc}; install the models extra: pip install torch==2.13.0 && pip install -e '.[models]'")
     except (ModelError, FileNotFoundError, OSError, ValueError) as exc:
         _fail(str(exc).splitlines()[0] if str(exc) else type(exc).__name__)
+
+
+def _sampling(args) -> dict:
+    """The backend's temperature and sample seed from the command line (greedy where it has no such options)."""
+    return {"temperature": getattr(args, "temperature", 0.0), "seed": getattr(args, "sample_seed", 0)}
 
 
 def _cpu_settings(args, model: str) -> dict:
@@ -83,12 +108,16 @@ def rollout_options(args, agents: list) -> dict:
 
     if not any(spec(a).resolved_kind() == "model" for a in agents):
         return {}
-    from ..llm.user import LLMUser
+    from ..llm.user import LLMUser, user_config
     from ..runtime.users import OfflineUser
 
     if not args.model:
-        _fail("--model is required for language-model agents (a directory; `adapt model init --out DIR` "
-              "builds a tiny one)")
+        _fail("--model is required for language-model agents (a directory, or `student`: the tiny student "
+              "shipped in the package; `adapt model init --out DIR` builds a random tiny one)")
+    if args.backend == "transformers":
+        args.model = resolve_model(args.model)
+        if args.user_model:
+            args.user_model = resolve_model(args.user_model)
     _default_batch(args)
     if args.batch < 1:
         _fail(f"--batch must be at least 1 (got {args.batch})")
@@ -104,11 +133,18 @@ def rollout_options(args, agents: list) -> dict:
     if args.user == "llm":
         def make_user(d, p, t):
             return LLMUser(user_backend, d, p, t)
-        user_config = {"user": "llm", **{f"user_{k}": v for k, v in user_backend.config().items()}}
+        users = user_config(user_backend)
     else:
-        make_user, user_config = OfflineUser, {"user": "offline"}
-    return {"backend": backend, "make_user": make_user, "user_config": user_config, "batch": args.batch,
+        make_user, users = OfflineUser, {"user": "offline"}
+    return {"backend": backend, "make_user": make_user, "user_config": users, "batch": args.batch,
             "steps": args.max_steps, "budget": args.budget}
+
+
+def resolve_model(model):
+    """A model directory, or the shipped model of that name (`student`)."""
+    from ..llm.named import resolve_model as resolve
+
+    return resolve(model)
 
 
 def add_users_check_options(q) -> None:
@@ -165,12 +201,13 @@ def _cmd_model_pretrain(args) -> int:
     import glob
 
     from ..compiler import SpecError, load_domain
-    from ..llm.pretrain import pretrain
+    from ..training.pretrain import pretrain
 
     paths = [p for pat in args.data for p in (sorted(glob.glob(pat)) or [pat])]
     missing = [p for p in paths if not Path(p).is_file()]
     if missing:
         _fail(f"no such file: {', '.join(missing)}")
+    args.model = resolve_model(args.model)
     if not Path(args.model).is_dir():
         _fail(f"--model {args.model}: not a directory")
     try:
@@ -178,14 +215,77 @@ def _cmd_model_pretrain(args) -> int:
                         budget=args.budget, seed=args.seed,
                         log=(lambda m: None) if args.quiet else (lambda m: print(m, file=sys.stderr)))
     except ImportError as exc:
-        _fail(f"{exc}; install the models extra: pip install torch==2.13.0 && pip install -e '.[models]'")
+        _fail(f"{exc}; install the train extra: pip install torch==2.13.0 && pip install -e '.[train]'")
     except SpecError:
         raise  # a ValueError too: the one handler reports its diagnostics
     except ValueError as exc:
         _fail(str(exc), 1)
-    print(f"trained on {info['examples']} steps of {info['episodes']} episodes for {info['steps']} updates "
-          f"(loss {info['first_loss']:.2f} -> {info['last_loss']:.2f}); saved to {args.out}")
+    print(f"trained on {info.examples} steps of {info.episodes} episodes for {info.steps} updates in "
+          f"{info.seconds:.0f} s (loss {info.first_loss:.2f} -> {info.last_loss:.2f}); saved to {args.out}")
     return 0
+
+
+def _cmd_model_student(args) -> int:
+    from ..compiler import load_domain
+    from ..harness.rollout import parse_seeds
+    from ..training.student import StudentSettings, build_student, training_personas
+    from .runs import _names
+
+    domain = load_domain(args.spec)
+    tasks = () if args.tasks == "all" else tuple(_names(args.tasks, domain.task, "task"))
+    try:
+        training_personas(domain, args.split)
+        s = StudentSettings(split=args.split, tasks=tasks, ask_seeds=tuple(parse_seeds(args.ask_seeds)),
+                            oracle_seeds=tuple(parse_seeds(args.oracle_seeds)), hidden=args.hidden,
+                            layers=args.layers, steps=args.steps, lr=args.lr, seed=args.seed, workers=args.workers)
+    except ValueError as exc:
+        _fail(str(exc))
+    if args.steps < 1 or args.workers < 1:
+        _fail("--steps and --workers must be at least 1")
+    try:
+        info = build_student(domain, args.out, s, log=lambda m: print(m, file=sys.stderr), progress=not args.quiet)
+    except ImportError as exc:
+        _fail(f"{exc}; install the train extra: pip install torch==2.13.0 && pip install -e '.[train]'")
+    r, sec = info["pretrain"], info["seconds"]
+    print(f"student saved to {args.out}: {r['examples']} steps of {r['episodes']} teacher episodes, {r['steps']} "
+          f"updates (loss {r['first_loss']:.2f} -> {r['last_loss']:.2f}); data {sec['data']:.0f} s, training "
+          f"{sec['pretrain']:.0f} s (use it with --model {args.out})")
+    return 0
+
+
+def _add_student_command(msub) -> None:
+    from ..training.student import StudentSettings
+    from .episode import add_spec_option
+
+    d = StudentSettings()
+    q = msub.add_parser("student", help="build the tiny student that can ask (the shipped `--model student`)",
+                        description="Rolls out oracle-ask (the oracle's plan, asking first where it departs from the "
+                                    "defaults) and oracle on the split's training personas x all tasks, builds a tiny "
+                                    "model (adapt model init) and pretrains it on those trajectories with TRL's SFT "
+                                    "trainer (adapt model pretrain). The defaults build the shipped checkpoint.")
+    add_spec_option(q)
+    q.add_argument("--out", required=True, help="directory for the model (data in OUT/data, OUT/student.json)")
+    q.add_argument("--split", default=d.split, help=f"split whose unseen personas are left out (default {d.split})")
+    q.add_argument("--ask-seeds", default=_seeds_text(d.ask_seeds),
+                   help=f"scene seeds of the oracle-ask episodes (default {_seeds_text(d.ask_seeds)})")
+    q.add_argument("--oracle-seeds", default=_seeds_text(d.oracle_seeds),
+                   help=f"scene seeds of the oracle episodes (default {_seeds_text(d.oracle_seeds)})")
+    q.add_argument("--tasks", default="all", help="'all' (default) or comma-separated task ids")
+    q.add_argument("--hidden", type=int, default=d.hidden, help=f"default {d.hidden}")
+    q.add_argument("--layers", type=int, default=d.layers, help=f"default {d.layers}")
+    q.add_argument("--steps", type=int, default=d.steps, help=f"updates, one packed episode each (default {d.steps})")
+    q.add_argument("--lr", type=float, default=d.lr, help=f"default {d.lr}")
+    q.add_argument("--seed", type=int, default=d.seed, help="model initialisation and data order (default 0)")
+    q.add_argument("--workers", type=int, default=d.workers, help=f"rollout processes (default {d.workers})")
+    q.add_argument("--quiet", action="store_true")
+    q.set_defaults(func=_cmd_model_student)
+
+
+def _seeds_text(seeds: tuple) -> str:
+    """(1, 2, 3) -> '1-3' (a contiguous run), else comma-separated."""
+    if seeds and list(seeds) == list(range(seeds[0], seeds[-1] + 1)) and len(seeds) > 1:
+        return f"{seeds[0]}-{seeds[-1]}"
+    return ",".join(map(str, seeds))
 
 
 def _gguf_run(fn, *a) -> int:
@@ -255,9 +355,10 @@ def add_commands(sub) -> None:
     q = msub.add_parser("pretrain", help="fine-tune a model on recorded trajectories rendered with the planner prompt",
                         description="Replays each episode of the results files (oracle or teacher runs) to rebuild "
                                     "the planner's prompt at every step and trains on the recorded action (loss on "
-                                    "the action tokens only). CPU by default.")
+                                    "the action tokens only) with TRL's SFT trainer. CPU by default.")
     add_spec_option(q)
-    q.add_argument("--model", required=True, help="model directory to start from (e.g. from adapt model init)")
+    q.add_argument("--model", required=True, help="model directory to start from (e.g. from adapt model init), or "
+                   "`student` (the shipped student)")
     q.add_argument("--data", required=True, nargs="+", help="results files or globs, e.g. runs/oracle*.jsonl")
     q.add_argument("--out", required=True, help="directory to save the fine-tuned model into")
     q.add_argument("--steps", type=int, default=2000, help="updates, one sequence each: an episode's steps packed, or "
@@ -268,4 +369,5 @@ def add_commands(sub) -> None:
     q.add_argument("--seed", type=int, default=0)
     q.add_argument("--quiet", action="store_true")
     q.set_defaults(func=_cmd_model_pretrain)
+    _add_student_command(msub)
     _add_gguf_commands(msub)

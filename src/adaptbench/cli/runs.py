@@ -144,17 +144,18 @@ def _write_out(path: str, text: str) -> None:
 
 
 def _cmd_eval(args) -> int:
+    from ..harness.sampled import by_temperature, sampling_notes
     from . import evaluation
 
     mapped = evaluation.mapping(args)
     runs = _load_runs(args, evaluation.run_files(args, mapped))
-    records = evaluation.resolve(runs, mapped, _splits(args))
+    records = by_temperature(evaluation.resolve(runs, mapped, _splits(args)))  # seeds averaged, temperatures apart
     rows, text, csv_text, md_text, lines = _tables(args, records)
     print(text)
     none = sum(1 for r in records if r.satisfaction_rate is None)
     if none and not args.by:
         print(f"{none} episode(s) had no applicable preference and are left out of the satisfaction rates")
-    for line in lines:
+    for line in [*lines, *sampling_notes(records)]:
         print(line)
     if args.plot:
         _plot(args.plot, rows if not args.by else _agent_rows(args, records), records)

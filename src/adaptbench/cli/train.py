@@ -5,6 +5,7 @@ modules add their methods through `REGISTRARS` (functions taking the group's sub
 
 from __future__ import annotations
 
+import json
 import sys
 
 from .argtypes import positive
@@ -34,35 +35,89 @@ def _selection(args, domain) -> tuple:
     return split, tuple(personas), tuple(_names(args.tasks, domain.task, "task")), tuple(_seeds(args.seeds))
 
 
-def _cmd_data(args) -> int:
+def _model_dir(path: str, flag: str) -> None:
     from pathlib import Path
 
-    from ..compiler import load_domain
+    if not (Path(path) / "config.json").is_file():
+        _fail(f"{flag} {path} is not a model directory (no config.json); `adapt model init --out DIR` builds one")
+
+
+def _workers(n: int) -> int:
+    """--workers, at most one per CPU core (a worker holds a model copy and one torch thread)."""
+    import os
+
+    cores = os.cpu_count() or 1
+    if n > cores:
+        print(f"adapt: note: --workers {n} capped at {cores} (the CPU cores)", file=sys.stderr)
+    return min(n, cores)
+
+
+def _teacher(args, domain, student_backend):
     from ..llm.hf import TransformersBackend
-    from ..training.data import Builder, DataSettings
+    from ..training.relabel import LLMTeacher, ScriptedTeacher
+
+    if not args.teacher_model:
+        return ScriptedTeacher(domain)
+    same = str(args.teacher_model).rstrip("/") == str(args.student).rstrip("/")
+    backend = student_backend if same else TransformersBackend(args.teacher_model, device=args.device,
+                                                               batch_size=args.batch)
+    return LLMTeacher(backend, domain, args.teacher_model)
+
+
+def _check_data_args(args) -> None:
+    """Usage errors of `adapt train data` before anything heavy is imported (a shipped model's name, such
+    as `student`, is resolved to its directory first)."""
+    from ..llm.named import resolve_model
+
+    args.student, args.teacher_model = resolve_model(args.student), resolve_model(args.teacher_model)
+    _model_dir(args.student, "--student")
+    if args.teacher_model:
+        _model_dir(args.teacher_model, "--teacher-model")
+    if args.workers > 1 and args.device != "cpu":
+        _fail("--workers above 1 forks the process, which a GPU context does not survive: use --workers 1 with "
+              f"--device {args.device}")
+
+
+def _cmd_data(args) -> int:
+    _check_data_args(args)
+    from ..compiler import load_domain
+    from ..harness.workers import Interrupted, WorkerDied
+    from ..llm.hf import TransformersBackend
+    from ..training.data import Builder, DataSettings, build
     from ..training.dataset import PairStore, mix_line
     from ..training.relabel import student_policy
 
-    if not (Path(args.student) / "config.json").is_file():
-        _fail(f"{args.student} is not a model directory (no config.json); `adapt model init --out DIR` builds one")
-    if args.teacher_model:
-        _fail("--teacher-model (an LLM teacher) is not implemented yet; the scripted oracle is the teacher", 1)
     domain = load_domain(args.spec)
     split, personas, tasks, seeds = _selection(args, domain)
-    backend = TransformersBackend(args.student, device=args.device, batch_size=args.batch)
-    student = student_policy(backend, domain)
+    backend = TransformersBackend(args.student, device=args.device, batch_size=args.batch,
+                                  temperature=args.temperature, seed=args.sample_seed)
+    teacher = _teacher(args, domain, backend)
     settings = DataSettings(split, personas, tasks, seeds, args.interactions, args.questions, args.eps1, args.eps2,
-                            args.max_length, args.batch)
+                            args.max_length, args.batch, _workers(args.workers), args.max_steps)
     store = PairStore(args.out)
-    builder = Builder(domain, student, settings, store, args.student)
+
+    def make_builder(sink):
+        return Builder(domain, student_policy(backend, domain), settings, sink, args.student, teacher)
 
     def progress(done: int, total: int) -> None:
         print(f"\r{done}/{total} episodes, {len(store.rows)} steps", end="", file=sys.stderr, flush=True)
 
-    builder.run(progress)
+    resume = "re-run the same command to resume (the steps written are kept and skipped)"
+    try:
+        times = build(make_builder, settings, store, progress)
+    except Interrupted as exc:
+        print(f"\nadapt: stopped by {exc}; {len(store.rows)} steps are in {store.path}; {resume}", file=sys.stderr)
+        return 130
+    except WorkerDied as exc:
+        print(f"\nadapt: {exc}; {len(store.rows)} steps are in {store.path}; {resume}", file=sys.stderr)
+        return 1
     print(file=sys.stderr)
     summary = store.finish()
-    summary["seconds"] = {k: round(v, 2) for k, v in builder.times.seconds.items()}
+    summary["seconds"] = {k: round(v, 2) for k, v in times.seconds.items()}
+    summary["teacher"] = teacher.name
+    summary["teacher_model"] = teacher.model
+    summary["interactions"] = args.interactions
+    (store.out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     print(mix_line(summary))
     print("time: " + ", ".join(f"{k} {v:.1f}s" for k, v in summary["seconds"].items()))
     return 0
@@ -72,35 +127,47 @@ def add_data(train_sub) -> None:
     """Add `data` to the `train` group."""
     p = train_sub.add_parser("data", help="build Reflection-DPO's preference pairs",
                              description="Roll out the student over the split's training personas; at each step "
-                                         "the scripted oracle relabels, the student reflects on a question, the "
-                                         "user answers, and the decision rule picks chosen/rejected. Writes "
-                                         "OUT/pairs.jsonl as it goes (running again resumes), then OUT/dataset/ "
-                                         "and OUT/summary.json.")
+                                         "the teacher (the scripted oracle, or an LLM with --teacher-model) "
+                                         "relabels, the student reflects on a question, the user answers, and the "
+                                         "decision rule picks chosen/rejected. Writes OUT/pairs.jsonl as it goes "
+                                         "(running again resumes), then OUT/dataset/ and OUT/summary.json.")
     add_spec_option(p)
     p.add_argument("--split", help="split id of spec/splits.yaml (its unseen personas are left out)")
-    p.add_argument("--student", required=True, help="the student's model directory")
+    p.add_argument("--student", required=True, help="the student's model directory, or `student` for the shipped tiny student")
     p.add_argument("--out", required=True, help="output directory")
     p.add_argument("--personas", default="all", help="'all' or comma-separated training persona ids")
     p.add_argument("--tasks", default="all", help="'all' or comma-separated task ids")
     p.add_argument("--seeds", default="0", help="scene seeds: 0-3 or 0,2,5 (default 0)")
-    p.add_argument("--interactions", type=positive, default=1, choices=[1], help="interactions per persona and "
-                   "task (only 1 so far: the prior-knowledge summary for a second is not built yet)")
+    p.add_argument("--interactions", type=int, default=1, choices=[1, 2], help="interactions per persona, task "
+                   "and seed (2: the paper's data, the second with a summary of what the user answered in the "
+                   "first as the student's prior knowledge)")
     p.add_argument("--questions", choices=["student", "topics"], default="student",
                    help="who proposes the question: the student from the reflection prompt, or the topic proposer")
-    p.add_argument("--teacher-model", help="an LLM teacher's model directory (not implemented yet)")
+    p.add_argument("--teacher-model", help="an LLM teacher's model directory: the privileged teacher prompt "
+                   "(the persona's preferences, the unmet ones reminded each step) proposing a^t under the grammar "
+                   "(default: the scripted oracle)")
     p.add_argument("--eps1", type=float, default=0.2, help="ε1: Δq above which the question is chosen (0.2)")
     p.add_argument("--eps2", type=float, default=0.5, help="ε2: Δt below which a^t is chosen (0.5)")
     p.add_argument("--max-length", type=positive, default=1024, help="tokens of prompt plus completion per row")
     p.add_argument("--batch", type=positive, default=8, help="episodes stepped together (default 8)")
+    p.add_argument("--workers", type=positive, default=1, help="worker processes, each with a copy of the "
+                   "models and --batch episodes in flight (default 1; at most the CPU cores)")
+    p.add_argument("--max-steps", type=positive, help="step budget per episode (default 50, as in adapt rollout)")
     p.add_argument("--device", default="cpu")
+    from .model import add_sampling_options
+
+    add_sampling_options(p, "")  # the student's actions and reflection questions
     p.set_defaults(func=_cmd_data)
 
 
 def add_commands(sub) -> None:
     """Build the `train` group with `data` and every registrar's subcommands."""
-    p = sub.add_parser("train", help="train agents (data, ...)", description="Build training data and train agents.")
+    p = sub.add_parser("train", help="train agents (data, dpo, sft, no-reflection, star-gate, ...)", description="Build training data and train agents.")
     train_sub = p.add_subparsers(dest="train_command", metavar="COMMAND")
     add_data(train_sub)
+    from .train_methods import add_methods
+
+    add_methods(train_sub)
     for registrar in REGISTRARS:
         registrar(train_sub)
     p.set_defaults(func=lambda args: (p.print_help(), 2)[1])

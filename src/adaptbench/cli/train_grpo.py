@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import sys
 
-from .argtypes import positive
+from .argtypes import positive, temperature
 from .episode import add_spec_option
 
 
@@ -43,6 +43,13 @@ def _cmd_grpo(args) -> int:
     if missing:
         print(f"adapt: train grpo needs {', '.join(missing)}: pip install -e '.[train]'", file=sys.stderr)
         return 1
+    if args.temperature <= 0:
+        print("adapt: train grpo needs --temperature above 0 (a group of identical greedy rollouts has no "
+              "advantage to learn from)", file=sys.stderr)
+        return 2
+    from ..llm.named import resolve_model
+
+    args.model = resolve_model(args.model)  # `student`: the shipped tiny student
     if not (Path(args.model) / "config.json").is_file():
         print(f"adapt: {args.model} is not a model directory (no config.json); build one with "
               "`adapt model init --out DIR`", file=sys.stderr)
@@ -53,7 +60,8 @@ def _cmd_grpo(args) -> int:
                      max_completion=args.max_completion, max_tool_calls=args.max_tool_calls,
                      episode_steps=args.episode_steps, holdout=args.holdout, seeds=args.seeds,
                      eval_seeds=args.eval_seeds, eval_episodes=args.eval_episodes, learning_rate=args.lr,
-                     format_reward=args.format_reward, seed=args.seed, tasks=tuple(args.task or ()))
+                     format_reward=args.format_reward, seed=args.seed, tasks=tuple(args.task or ()),
+                     temperature=args.temperature)
     try:
         r = train_grpo(s)
     except ValueError as exc:  # TRL's and transformers' refusals of a model or setting: one line, not a traceback
@@ -90,7 +98,10 @@ def add_grpo(train_sub) -> None:
     p.add_argument("--lr", type=float, default=5e-4, help="learning rate (default 5e-4)")
     p.add_argument("--format-reward", type=_fraction, default=0.1,
                    help="weight of the tool-call format shaping reward (default 0.1; 0 turns it off)")
-    p.add_argument("--seed", type=int, default=0, help="training seed (default 0)")
+    p.add_argument("--seed", type=int, default=0, help="training seed (default 0; also seeds the rollouts' sampling)")
+    p.add_argument("--temperature", type=temperature, default=1.0,
+                   help="sampling temperature of the rollouts (TRL's generation; default 1.0: a GRPO group needs "
+                   "different samples)")
     p.set_defaults(func=_cmd_grpo)
 
 

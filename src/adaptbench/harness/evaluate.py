@@ -11,6 +11,7 @@ import io
 import math
 
 from .metrics import common_k, pass_k, precision
+from .modelsteps import canonical_counts, canonical_line
 
 
 def load_records(paths, splits=None) -> list:
@@ -69,6 +70,7 @@ def _row(method: str, mine: list, unseen: dict, ks: tuple) -> dict:
                 cols[col][0].append(r.satisfaction_rate)
             cols[col][1].append(r.questions)
     return {"agent": method, "episodes": len(mine), "pass_k": pass_k(mine, ks), "precision": precision(mine),
+            "canonical": canonical_counts(mine),
             "rate_seen": mean_se(cols["seen"][0]), "rate_unseen": mean_se(cols["unseen"][0]),
             "questions_seen": mean_se(cols["seen"][1]), "questions_unseen": mean_se(cols["unseen"][1]),
             "splits": tuple(sorted({r.split for r in mine if r.split is not None}))}
@@ -134,6 +136,9 @@ def notes(rows: list) -> list:
     if left:
         out.append(f"{left} (method, persona, task) pair(s) had no applicable preference in any seed and are "
                    "left out of pass^k")
+    line = canonical_line(rows)
+    if line:
+        out.append(line)
     old = sum(r["precision"].unjudged for r in rows)
     if old:
         out.append(f"{old} question(s) in records older than version 2 carry no targets and are not judged "

@@ -14,6 +14,10 @@ Version history (`version` field):
 - 2: a question step carries `targets`: the ids of the preferences the question targets, as the
   offline user's matcher decides (what the offline user answered from; the judge of an LLM user's
   questions). Older records have none: their question precision is n/a.
+- 3: a sampling model agent's `agent_config` holds `sample_seed` next to `temperature` (part of the
+  episode's identity: resume skips an episode only under the same seed and temperature), and a model
+  step's `stats` hold `over_budget: true` (and `over_budget_tokens`) when its prompt exceeded the token
+  budget even with every older step left out. Older records do not say: `adapt eval` counts them apart.
 
 A record of a newer version than this code knows is refused (`RecordError`), never half-read.
 """
@@ -25,7 +29,7 @@ from dataclasses import dataclass, field
 
 from ..errors import AdaptError
 
-RECORD_VERSION = 2
+RECORD_VERSION = 3
 VERDICTS = ("satisfied", "violated", "inapplicable")
 
 
@@ -116,6 +120,21 @@ class EpisodeRecord:
     def config(self) -> dict:
         """The agent configuration (version 0 records: the scripted agent with the offline user)."""
         return self.agent_config or {"agent": self.agent, "user": "offline"}
+
+    @property
+    def temperature(self) -> float | None:
+        """The model agent's sampling temperature (None: a scripted agent, or not recorded)."""
+        return self.config.get("temperature")
+
+    @property
+    def sample_seed(self) -> int | None:
+        """The sample seed the model agent sampled under (None: greedy, scripted or not recorded)."""
+        return self.config.get("sample_seed")
+
+    @property
+    def over_budget(self) -> int:
+        """Steps whose prompt exceeded the token budget even with every older step left out."""
+        return sum(1 for s in self.steps if (s.stats or {}).get("over_budget"))
 
     def to_dict(self) -> dict:
         """JSON-friendly form (what a results file holds)."""

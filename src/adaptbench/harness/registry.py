@@ -73,7 +73,9 @@ def register(name: str, entry: str, kind: str | None = "scripted", description: 
 
 for _name, _cls, _text in (("oracle", "OraclePolicy", "privileged: searches the plan against the persona's verifiers"),
                            ("never-ask", "NeverAsk", "default recipes, no questions"),
-                           ("always-ask", "AlwaysAsk", "asks about every choice first")):
+                           ("always-ask", "AlwaysAsk", "asks about every choice first"),
+                           ("oracle-ask", "OracleAskPolicy", "privileged plan, asks first where it departs from "
+                            "the defaults")):
     register(_name, f"{_SCRIPTED}:{_cls}", "scripted", _text)
 for _name, _kind in (("planner", "planner"), ("teacher", "teacher"), ("react", "react"),
                      ("never-ask-llm", "never_ask"), ("always-ask-llm", "always_ask")):

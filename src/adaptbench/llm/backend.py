@@ -10,6 +10,7 @@ are rendered, counted and truncated the same way for a local model and a served 
 
 from __future__ import annotations
 
+import hashlib
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
 
@@ -82,7 +83,10 @@ class Request:
     (the completion is cut before the first), a token limit, and a validator for what comes back
     (`text -> bool`; used where the grammar may not be enforced, e.g. a server without grammars), and
     a session key: requests of one session (an episode's steps) extend each other's prompts, so a
-    backend may keep the session's key/value cache and read only the new tokens."""
+    backend may keep the session's key/value cache and read only the new tokens. `key` names the
+    request's own random stream when the backend samples (`llm.sampling`: an episode's step, e.g.
+    `planner/juan/eggs/0/3/action`; None: the backend's run generator), and `temperature` overrides the
+    backend's for this request (the LLM user answers greedily: 0.0)."""
 
     prompt: str
     grammar: str | None = None
@@ -90,27 +94,36 @@ class Request:
     max_tokens: int = 64
     validate: object = field(default=None, compare=False)
     session: str | None = None
+    key: str | None = None
+    temperature: float | None = None
 
 
 @dataclass(frozen=True)
 class Completion:
     """What came back: the text, tokens in the prompt and generated, whether the grammar accepted the
-    text (None when unconstrained), and timings and other statistics."""
+    text (None when unconstrained), timings and other statistics, and `token_ids`: the ids the model
+    generated, in order, the end token included when one was generated (None where the backend cannot
+    know them: a server that returns no ids). The text may be shorter than the ids (cut at a stop
+    string, a healed prompt's spaces taken off: `boundary`); `stats["canonical"]` says whether the ids
+    are the tokenizer's own encoding of their text (`canonical`)."""
 
     text: str
     prompt_tokens: int
     tokens: int
     accepted: bool | None = None
     stats: dict = field(default_factory=dict)
+    token_ids: tuple | None = None
 
 
 @dataclass(frozen=True)
 class Scored:
-    """A continuation's per-token log-probabilities under the model and their mean probability
-    (the arithmetic mean of the tokens' softmax probabilities, Reflection-DPO's P(a | x))."""
+    """A continuation's per-token log-probabilities under the model, the ids they are of (a text
+    continuation's ids end with the end token: it is scored as a complete answer), and their mean
+    probability (the arithmetic mean of the tokens' softmax probabilities, Reflection-DPO's P(a | x))."""
 
     text: str
     logprobs: tuple
+    token_ids: tuple = ()
 
     @property
     def mean_prob(self) -> float:
@@ -132,8 +145,16 @@ class Backend(ABC):
         """One `Completion` per `Request`, in order (batched where the backend can)."""
 
     @abstractmethod
-    def score(self, prompt: str, continuations) -> list:
-        """One `Scored` per continuation of the rendered `prompt`."""
+    def score(self, prompt: str, continuations, dtype: str | None = None) -> list:
+        """One `Scored` per continuation of the rendered `prompt`. A continuation is text, scored as a
+        complete answer (its canonical tokens and the end token the chat template closes an assistant
+        turn with: `continuation_ids`), or a sequence of token ids, scored as they are (a completion's
+        `token_ids`). `dtype` ("float32"): the precision of the forward pass, where the backend can
+        choose it (`score_dtype` says which it is)."""
+
+    def score_dtype(self, dtype: str | None = None) -> str:
+        """The precision `score(..., dtype)` runs the model in ("server": whatever the server uses)."""
+        return "server"
 
     def config(self) -> dict:
         """What identifies the model (recorded with each episode)."""
@@ -141,6 +162,22 @@ class Backend(ABC):
 
     def release(self, session: str) -> None:  # noqa: B027 - optional hook, nothing to release by default
         """Forget whatever is kept for a session (its episode ended)."""
+
+
+SEED_RANGE = 2**31  # request seeds (`llm.sampling`) fit a 32-bit signed int: what every server's `seed` takes
+
+
+def request_seed(sample_seed: int, key: str) -> int:
+    """The seed of a keyed request: a stable hash of the run's sample seed and the key (the same in
+    every process and on every machine), in [0, 2**31)."""
+    digest = hashlib.blake2b(f"{sample_seed}\x00{key}".encode(), digest_size=8).digest()
+    return int.from_bytes(digest, "big") % SEED_RANGE
+
+
+def sampling_config(temperature: float, seed: int) -> dict:
+    """What a backend records of its sampling: the temperature, and the sample seed when it samples (a
+    greedy run is the same under every seed, so its episodes match whatever `--sample-seed` said)."""
+    return {"temperature": temperature, **({"sample_seed": seed} if temperature > 0 else {})}
 
 
 def make_backend(kind: str, **kw) -> Backend:
@@ -164,3 +201,31 @@ def cut_at_stop(text: str, stop) -> str:
         if s and 0 <= i < cut:
             cut = i
     return text[:cut]
+
+
+def continuation_ids(tokenizer, continuation) -> list:
+    """The token ids a continuation is scored on: a text's canonical tokens followed by the end token
+    the chat template closes an assistant turn with (`chat.end_token`), so that an answer is charged
+    for stopping where it stops ("Look for eggs" is not a free prefix of "Look for eggs in the
+    fridge"); a sequence of ids as it is."""
+    if isinstance(continuation, str):
+        from .chat import end_token
+
+        ids = tokenizer(continuation, add_special_tokens=False)["input_ids"]
+        end = end_token(tokenizer)
+        return [*ids, end] if end is not None else list(ids)
+    return [int(t) for t in continuation]
+
+
+def canonical(tokenizer, ids) -> bool:
+    """Whether generated ids (a final end token set aside) are the tokenizer's own encoding of the
+    text they decode to. A grammar-constrained decoder may take other splits of the same bytes
+    (`quart`+`er` for `quarter`; a forced `_0 ` after `oven` where the tokenizer writes `oven_0 `):
+    on-policy training must then use the ids, not a re-tokenization of the text."""
+    from .chat import end_token
+
+    body = list(ids)
+    if body and body[-1] in {end_token(tokenizer), tokenizer.eos_token_id}:
+        body = body[:-1]
+    text = tokenizer.decode(body, skip_special_tokens=False, clean_up_tokenization_spaces=False)
+    return tokenizer(text, add_special_tokens=False)["input_ids"] == body

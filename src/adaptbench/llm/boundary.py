@@ -109,12 +109,15 @@ def generate(backend, requests) -> list:
     return [unheal(o, tail, r.grammar is not None) for o, (_, tail), r in zip(outs, healed, requests, strict=True)]
 
 
-def score(backend, prompt: str, continuations) -> list:
-    """`backend.score` with the prompt's trailing spaces moved to the front of every continuation when the
-    tokenizer merges them into the next word: the log-probabilities are those of the continuation's own
-    tokens (` Look`, ` for`, ` eggs`), read after the prompt the model would see in the text."""
+def score(backend, prompt: str, continuations, dtype: str | None = None) -> list:
+    """`backend.score` with the prompt's trailing spaces moved to the front of every text continuation
+    when the tokenizer merges them into the next word: the log-probabilities are those of the
+    continuation's own tokens (` Look`, ` for`, ` eggs`, the end token), read after the prompt the model
+    would see in the text. A continuation of token ids (a completion's `token_ids`) is scored after the
+    prompt its request was generated from: the healed one, whose spaces its ids begin with."""
     h = split_tail(backend.tokenizer, prompt)
     if not h.tail:
-        return backend.score(prompt, continuations)
-    got = backend.score(h.head, [h.tail + c for c in continuations])
-    return [Scored(c, s.logprobs) for c, s in zip(continuations, got, strict=True)]
+        return backend.score(prompt, continuations, dtype=dtype)
+    got = backend.score(h.head, [h.tail + c if isinstance(c, str) else c for c in continuations], dtype=dtype)
+    return [Scored(c, s.logprobs, s.token_ids) if isinstance(c, str) else s
+            for c, s in zip(continuations, got, strict=True)]

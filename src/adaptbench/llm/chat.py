@@ -111,6 +111,34 @@ def _pieces(tokenizer, state: dict, text: str) -> list:
     return out
 
 
+_MARK = "adaptbench-end-probe"
+
+
+def end_token(tokenizer) -> int | None:
+    """The token the chat template closes an assistant turn with (end-of-turn, such as `<|im_end|>` or
+    `<|eot_id|>`, or EOS): the first special token the template writes after an assistant message's
+    content; EOS when it writes none (None without EOS either). Kept on the tokenizer object."""
+    memo = tokenizer.__dict__.setdefault("_adapt_end", [])
+    if not memo:
+        memo.append(_end_token(tokenizer))
+    return memo[0]
+
+
+def _end_token(tokenizer) -> int | None:
+    messages = [{"role": "user", "content": "u"}, {"role": "assistant", "content": _MARK}]
+    try:
+        text = tokenizer.apply_chat_template(messages, tokenize=False)
+    except Exception:  # noqa: BLE001 - a template that refuses this chat: fall back to EOS
+        text = ""
+    special = set(getattr(tokenizer, "all_special_ids", ())) | set(getattr(tokenizer, "added_tokens_decoder", {}))
+    if _MARK in text:
+        after = text[text.index(_MARK) + len(_MARK):]
+        for t in tokenizer(after, add_special_tokens=False)["input_ids"]:
+            if t in special:
+                return t
+    return tokenizer.eos_token_id
+
+
 def count(tokenizer, text: str) -> int:
     """Tokens in a rendered prompt."""
     return len(encode(tokenizer, text))

@@ -133,6 +133,22 @@ def grouped_heads(model):
         os.environ.pop(GQA_FLAG, None)
 
 
+_CACHE_ARG: dict = {}  # model class -> the name its forward takes the key/value cache by
+
+
+def cache_arg(model, cache) -> dict:
+    """The keyword that hands `cache` to the model's forward: `cache` where the model takes it (transformers
+    5.2x renamed it and warns, FutureWarning, on every call that still says `past_key_values`), else
+    `past_key_values`."""
+    kind = type(model)
+    if kind not in _CACHE_ARG:
+        import inspect
+
+        params = inspect.signature(model.forward).parameters
+        _CACHE_ARG[kind] = "cache" if "cache" in params else "past_key_values"
+    return {_CACHE_ARG[kind]: cache}
+
+
 def _layers(cache: DynamicCache) -> list:
     return [(layer.keys, layer.values) for layer in cache.layers]
 
@@ -177,8 +193,8 @@ def prefill(model, row: Row, layers: list | None):
     pos = torch.arange(start, len(row.prompt), device=model.device).unsqueeze(0)
     cache = _cache(layers, model.config) if layers else DynamicCache(config=model.config)
     with grouped_heads(model):
-        out = model(input_ids=ids, position_ids=pos, past_key_values=cache, use_cache=True, logits_to_keep=1)
-    return out.logits[0, -1].float(), _layers(out.past_key_values)
+        out = model(input_ids=ids, position_ids=pos, use_cache=True, logits_to_keep=1, **cache_arg(model, cache))
+    return out.logits[0, -1].float(), _layers(cache)
 
 
 def prefill_many(model, rows: list, layers: list, pad_id: int = 0) -> list:
@@ -193,7 +209,7 @@ def prefill_many(model, rows: list, layers: list, pad_id: int = 0) -> list:
     dev = model.device
     with grouped_heads(model):
         out = model(input_ids=ids.to(dev), attention_mask=torch.cat([mask, tail.to(mask.device)], dim=1),
-                    position_ids=pos.to(dev), past_key_values=cache, use_cache=True,
+                    position_ids=pos.to(dev), use_cache=True, **cache_arg(model, cache),
                     cache_position=torch.arange(width, width + room, device=dev), logits_to_keep=1)
     logits = out.logits[:, -1].float()
     return [(logits[i], [layer.row_parts(i, cached[i], width, new[i]) for layer in cache.layers])
@@ -379,7 +395,7 @@ def _forward(model, cache, mask: torch.Tensor, new: list, read: list, pad_id: in
         ids, pos = ids.to(dev), pos.to(dev)
         mask = torch.cat([mask, tail.to(mask.device)], dim=1)
     with grouped_heads(model) if most > 1 else nullcontext():
-        out = model(input_ids=ids, attention_mask=mask, position_ids=pos, past_key_values=cache, use_cache=True,
+        out = model(input_ids=ids, attention_mask=mask, position_ids=pos, use_cache=True, **cache_arg(model, cache),
                     cache_position=torch.arange(width, width + most, device=dev), logits_to_keep=1)
     return out.logits[:, -1].float(), mask
 
@@ -410,15 +426,15 @@ def loop_supported(model) -> bool:
 
 
 class Picker:
-    """Masks and samples each step's tokens: greedy at temperature 0, else from the softmax at that
-    temperature (seeded generator). With a grammar processor, the rows' first masks (the costliest: the
+    """Masks and samples each step's tokens: greedy at temperature 0, else each row from its softmax at its
+    temperature with its own generator (`sampling.RowSampler`). With a grammar processor, the rows' first masks (the costliest: the
     start of an action allows many tokens) are computed on a worker thread while the prompts are read;
     later ones as the rows take their tokens (`advance`), which also finds the tokens a grammar forces.
     (Computing masks on the worker during each forward pass instead measured slower on the CPU: 0.82–0.89
     of unconstrained speed against 1.03–1.32 fast-forwarding, and on a GPU forward passes are the cost.)"""
 
-    def __init__(self, proc, temperature: float = 0.0, generator: torch.Generator | None = None):
-        self.proc, self.temperature, self.generator = proc, temperature, generator
+    def __init__(self, proc, sampler=None):
+        self.proc, self.sampler = proc, sampler  # sampler: `sampling.RowSampler` (None: greedy)
         self._first = None
 
     def pick(self, logits: torch.Tensor, active: list, steps) -> torch.Tensor:
@@ -432,9 +448,8 @@ class Picker:
             t0 = time.perf_counter()
             self.proc.mask(logits, active, live, steps)
             self.proc.mask_seconds += time.perf_counter() - t0
-        if self.temperature > 0:
-            probs = torch.softmax(logits / self.temperature, dim=-1)
-            return torch.multinomial(probs, 1, generator=self.generator).view(-1)
+        if self.sampler is not None:
+            return self.sampler.pick(logits, active)
         return logits.argmax(dim=-1)
 
     def start(self, rows: list) -> None:

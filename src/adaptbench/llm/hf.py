@@ -1,5 +1,5 @@
 """The `transformers` backend: a model from a local directory, on CPU or GPU, batched generation with a
-grammar per row (llguidance) and per-sequence-correct scoring under left padding.
+grammar per row (llguidance), and scoring that reads each prompt once (`scoring`).
 
     backend = TransformersBackend("models/tiny", device="cpu", dtype="float32")
 """
@@ -18,9 +18,21 @@ from transformers import (
 )
 
 from . import chat
-from .backend import Backend, Completion, Scored, check_device, context_limit, cut_at_stop, load_tokenizer
+from .backend import (
+    Backend,
+    Completion,
+    Scored,
+    canonical,
+    check_device,
+    context_limit,
+    continuation_ids,
+    cut_at_stop,
+    load_tokenizer,
+)
 from .constrained import GrammarProcessor, Matchers, closing_tokens, ll_tokenizer
 from .decode import Picker, Row, Sessions, decode, loop_supported
+from .sampling import RowSampler, SampleProcessor, generator, request_seed, sampling_config
+from .scoring import read_prompt, score_after
 
 DTYPES = {"auto": "auto", "float32": torch.float32, "bfloat16": torch.bfloat16, "float16": torch.float16}
 
@@ -54,14 +66,11 @@ def _left_pad(rows, pad_id: int):
     return ids, mask
 
 
-def positions(mask: torch.Tensor) -> torch.Tensor:
-    """Position ids under left padding: 0 at each row's first real token."""
-    return (mask.cumsum(-1) - 1).clamp(min=0)
-
-
 class TransformersBackend(Backend):
     """A Hugging Face causal LM from a local directory. On the CPU, torch uses `threads` threads (1 by
-    default: a small model gains nothing from more, and on a shared machine they contend)."""
+    default: a small model gains nothing from more, and on a shared machine they contend). Greedy at
+    `temperature` 0; above it, sampled under the run's sample seed `seed` (`llm.sampling`: a request with
+    a `key` from its own generator, one without from the run's generator, seeded once here)."""
 
     name = "transformers"
 
@@ -83,17 +92,25 @@ class TransformersBackend(Backend):
         self.vocab = self.model.get_output_embeddings().weight.shape[0]
         self.lltok = ll_tokenizer(self.tokenizer, self.vocab)
         self.matchers = Matchers(self.lltok)
+        self._copy = None  # the model in another precision, for `score(..., dtype)`
         self.pad_id = self.tokenizer.pad_token_id if self.tokenizer.pad_token_id is not None \
             else self.tokenizer.eos_token_id
         self.loop = loop_supported(self.model)
         self.prefill_together = device != "cpu"  # see decode.prefill_rows
         self.sessions = Sessions(2 * batch_size if sessions is None else sessions)
-        self._generator = torch.Generator(device=device).manual_seed(seed)
+        self._generator = generator(seed, device)  # the run's: seeded once, for requests without a key
 
     def config(self) -> dict:
-        """The model directory, device, dtype and sampling temperature."""
+        """The model directory, device, dtype, sampling temperature and, when sampling, the sample seed."""
         return {"backend": self.name, "model": self.path, "device": self.device, "dtype": self.dtype,
-                "temperature": self.temperature}
+                **sampling_config(self.temperature, self.seed)}
+
+    def sampler(self, reqs: list) -> RowSampler:
+        """Each request's temperature and generator (`llm.sampling`)."""
+        temps = [self.temperature if r.temperature is None else r.temperature for r in reqs]
+        gens = [None if t <= 0 else self._generator if r.key is None else
+                generator(request_seed(self.seed, r.key), self.device) for r, t in zip(reqs, temps, strict=True)]
+        return RowSampler(temps, gens)
 
     def encode(self, text: str) -> list:
         """Token ids of rendered text (no special tokens added: the chat template holds them)."""
@@ -121,7 +138,7 @@ class TransformersBackend(Backend):
         if not self.loop:
             return self._batch_hf(reqs, prompts, proc, t0)
         rows = [Row(p, r.max_tokens, tuple(r.stop), getattr(r, "session", None)) for p, r in zip(prompts, reqs, strict=True)]
-        picker = Picker(proc, self.temperature, self._generator)
+        picker = Picker(proc, self.sampler(reqs))
         reading = decode(self.model, rows, self.sessions, picker, self._stopper(rows), self.pad_id,
                          self.prefill_together)
         seconds = time.perf_counter() - t0
@@ -151,58 +168,75 @@ class TransformersBackend(Backend):
         ids, mask = ids.to(self.device), mask.to(self.device)
         eos = self.tokenizer.eos_token_id
         stops = RowStops(self.tokenizer, ids.shape[1], [r.max_tokens for r in reqs], [r.stop for r in reqs])
-        sample = self.temperature > 0
-        if sample:
-            torch.manual_seed(self.seed)
+        sampler = self.sampler(reqs)  # each row drawn with its own generator, after the grammar's mask
+        processors = ([proc] if proc else []) + ([] if sampler.greedy else [SampleProcessor(sampler)])
         gen = self.model.generate(
             input_ids=ids, attention_mask=mask, max_new_tokens=max(r.max_tokens for r in reqs),
-            logits_processor=LogitsProcessorList([proc] if proc else []),
-            stopping_criteria=StoppingCriteriaList([stops]), do_sample=sample,
-            temperature=self.temperature if sample else None, top_p=None, top_k=None,
-            pad_token_id=self.pad_id, eos_token_id=eos)
+            logits_processor=LogitsProcessorList(processors),
+            stopping_criteria=StoppingCriteriaList([stops]), do_sample=False,
+            temperature=None, top_p=None, top_k=None, pad_token_id=self.pad_id, eos_token_id=eos)
         seconds = time.perf_counter() - t0
         return [self._completion(r, gen[i, ids.shape[1]:].tolist(), len(prompts[i]), proc, i, seconds, len(reqs))
                 for i, r in enumerate(reqs)]
 
-    def _completion(self, req, tokens: list, n_prompt: int, proc, row: int, seconds: float, batch: int,
-                    reused: int | None = None):
+    def _generated(self, tokens: list) -> list:
+        """A row's generated ids: up to and including EOS, else without the padding `model.generate`
+        puts after a row that stopped early."""
         eos = self.tokenizer.eos_token_id
         if eos in tokens:
-            tokens = tokens[:tokens.index(eos) + 1]
-        tokens = [t for t in tokens if t != self.pad_id or t == eos]
+            return tokens[:tokens.index(eos) + 1]
+        end = len(tokens)
+        while end and tokens[end - 1] == self.pad_id:
+            end -= 1
+        return tokens[:end]
+
+    def _completion(self, req, tokens: list, n_prompt: int, proc, row: int, seconds: float, batch: int,
+                    reused: int | None = None):
+        tokens = self._generated(tokens)
         if proc is not None and req.grammar is not None:
             proc.finish(row, tokens)
         text = cut_at_stop(self.tokenizer.decode(tokens, skip_special_tokens=True), req.stop)
         accepted = None if req.grammar is None else proc.accepted(row)
-        stats = {"seconds": round(seconds, 4), "batch": batch}
+        stats = {"seconds": round(seconds, 4), "batch": batch, "canonical": canonical(self.tokenizer, tokens)}
         if reused is not None:
             stats["cached_tokens"] = reused
         if proc is not None:
             stats["mask_seconds"] = round(proc.mask_seconds, 4)
-        return Completion(text, n_prompt, len(tokens), accepted, stats)
+        return Completion(text, n_prompt, len(tokens), accepted, stats, tuple(tokens))
+
+    def score_dtype(self, dtype: str | None = None) -> str:
+        """The precision `score(..., dtype)` runs the model in: `dtype`, or the model's own."""
+        return dtype or str(self.model.dtype).removeprefix("torch.")
+
+    def _scorer(self, dtype: str | None):
+        """The model to score with: this one, or for another `dtype` the model directory loaded again in
+        that precision (the checkpoint's weights, not this model's rounded ones; loaded once and kept: a
+        float32 copy beside a bfloat16 model takes twice its memory)."""
+        if dtype is None or DTYPES.get(dtype, dtype) == self.model.dtype:
+            return self.model
+        if dtype not in DTYPES or dtype == "auto":
+            raise ValueError(f"unknown scoring dtype '{dtype}' (choose from: float32, bfloat16, float16)")
+        kept = self._copy
+        if kept is None or kept.dtype != DTYPES[dtype]:
+            kept = self._copy = AutoModelForCausalLM.from_pretrained(self.path, dtype=DTYPES[dtype]).to(
+                self.device).eval()
+        return kept
 
     @torch.no_grad()
-    def score(self, prompt: str, continuations) -> list:
-        """Per-token log-probabilities of each continuation after `prompt` (one forward pass per
-        `batch_size` continuations; left padding with explicit position ids)."""
+    def score(self, prompt: str, continuations, dtype: str | None = None) -> list:
+        """Per-token log-probabilities of each continuation after `prompt` (text: its canonical tokens
+        and the chat template's end token; ids: as they are, `backend.continuation_ids`). The prompt is
+        read once; its continuations are read after its keys and values, `batch_size` per pass
+        (`scoring`). `dtype` ("float32"): run the model in that precision (`score_dtype`)."""
+        model = self._scorer(dtype)
         p = self.encode(prompt)
-        conts = [self.encode(c) for c in continuations]
+        conts = [continuation_ids(self.tokenizer, c) for c in continuations]
+        if not conts:
+            return []
+        first, layers = read_prompt(model, p)
         out = []
         for i in range(0, len(conts), self.batch_size):
-            chunk = conts[i:i + self.batch_size]
-            out += self._score(p, chunk)
-        return [Scored(c, lp) for c, lp in zip(continuations, out, strict=True)]
-
-    def _score(self, prompt: list, conts: list) -> list:
-        ids, mask = _left_pad([prompt + c for c in conts], self.pad_id)
-        keep = max(len(c) for c in conts) + 1
-        logits = self.model(input_ids=ids.to(self.device), attention_mask=mask.to(self.device),
-                            position_ids=positions(mask).to(self.device), logits_to_keep=keep).logits
-        logp = torch.log_softmax(logits.float(), dim=-1).cpu()  # positions T-keep .. T-1
-        out = []
-        for i, c in enumerate(conts):
-            n = len(c)
-            # the token at sequence position T-n+j is predicted at position T-n+j-1 = index keep-1-n+j
-            rows = logp[i, keep - 1 - n: keep - 1]
-            out.append(tuple(rows[torch.arange(n), torch.tensor(c, dtype=torch.long)].tolist()) if n else ())
-        return out
+            out += score_after(model, first, layers, len(p), conts[i:i + self.batch_size], self.pad_id)
+        return [Scored(c if isinstance(c, str) else self.tokenizer.decode(ids, skip_special_tokens=True), lp,
+                       tuple(ids))
+                for c, ids, lp in zip(continuations, conts, out, strict=True)]

@@ -7,8 +7,9 @@ and sent as token ids to `/v1/completions`, so a served model sees exactly what 
 backend would. The grammar goes the way vLLM's structured outputs take it
 (`"structured_outputs": {"grammar": ...}`); what comes back is checked with the request's validator
 (the simulator's parser) and, if the server did not enforce the grammar, asked once more (sampled at
-temperature 0.7). `score` reads prompt log-probabilities (`echo` + `logprobs`, or vLLM's
-`prompt_logprobs`). Requests of one batch are sent concurrently. Standard library only (urllib).
+temperature 0.7). A completion carries its generated ids where the server returns them (vLLM's
+`return_token_ids`; None otherwise: `transformers serve`). `score` reads prompt log-probabilities
+(`echo` + `logprobs`, or vLLM's `prompt_logprobs`). Requests of one batch are sent concurrently. Standard library only (urllib).
 
 `transformers serve` (transformers 5.x) takes only text prompts and refuses the grammar field (HTTP
 422): `OpenAIBackend(..., text_prompts=True, grammar_field=False)` sends the rendered text and leaves
@@ -19,12 +20,26 @@ the grammar to the validator and the retry; it offers no prompt log-probabilitie
 from __future__ import annotations
 
 import json
+import random
 import time
 import urllib.error
 import urllib.request
 from concurrent.futures import ThreadPoolExecutor
 
-from .backend import Backend, Completion, ModelError, Scored, context_limit, cut_at_stop, load_tokenizer
+from .backend import (
+    SEED_RANGE,
+    Backend,
+    Completion,
+    ModelError,
+    Scored,
+    canonical,
+    context_limit,
+    continuation_ids,
+    cut_at_stop,
+    load_tokenizer,
+    request_seed,
+    sampling_config,
+)
 
 
 class ServerError(ModelError):
@@ -43,8 +58,9 @@ class OpenAIBackend(Backend):
 
     def __init__(self, url: str, model: str, tokenizer: str, api_key: str | None = None, timeout: float = 120.0,
                  concurrency: int = 16, temperature: float = 0.0, text_prompts: bool = False,
-                 grammar_field: bool = True):
+                 grammar_field: bool = True, seed: int = 0):
         self.url, self.model, self.api_key = url.rstrip("/"), model, api_key
+        self.seed, self._rng = seed, random.Random(seed)  # the run's seeds for requests without a key
         self.text_prompts, self.grammar_field = text_prompts, grammar_field
         self.timeout, self.concurrency, self.temperature = timeout, concurrency, temperature
         self.tokenizer = load_tokenizer(tokenizer)
@@ -52,8 +68,13 @@ class OpenAIBackend(Backend):
         self.retries = 0  # completions that failed validation and were asked again
 
     def config(self) -> dict:
-        """The server's model name and sampling temperature."""
-        return {"backend": self.name, "model": self.model, "temperature": self.temperature}
+        """The server's model name, sampling temperature and, when sampling, the sample seed."""
+        return {"backend": self.name, "model": self.model, **sampling_config(self.temperature, self.seed)}
+
+    def _seed(self, req) -> int:
+        """The `seed` sent with a request (`llm.sampling`): derived from the sample seed and the request's key
+        like the transformers backend's generators, else the next of the run's seeds."""
+        return request_seed(self.seed, req.key) if req.key is not None else self._rng.randrange(SEED_RANGE)
 
     def _post(self, path: str, body: dict | None) -> dict:
         """POST `body` (GET when None) and return the JSON answer; ServerError saying what to do."""
@@ -97,47 +118,59 @@ class OpenAIBackend(Backend):
         """Token ids of rendered text (the chat template already holds the special tokens)."""
         return self.tokenizer(text, add_special_tokens=False)["input_ids"]
 
-    def _complete(self, ids: list, req, temperature: float) -> tuple:
+    def _complete(self, ids: list, req, temperature: float, seed: int) -> tuple:
         prompt = req.prompt if self.text_prompts else ids
         body = {"model": self.model, "prompt": prompt, "max_tokens": req.max_tokens, "temperature": temperature}
+        if temperature > 0:
+            body["seed"] = seed
         if req.stop:
             body["stop"] = list(req.stop)
         if req.grammar is not None and self.grammar_field:
             body["structured_outputs"] = {"grammar": req.grammar}
+        if not self.text_prompts:
+            body["return_token_ids"] = True  # vLLM: the generated ids (EOS included) in `choices[0].token_ids`
         out = self._post("/completions", body)
         choice = out["choices"][0]
         usage = out.get("usage") or {}
-        return cut_at_stop(choice.get("text", ""), req.stop), usage.get("completion_tokens")
+        ids = choice.get("token_ids")
+        ids = tuple(int(t) for t in ids) if isinstance(ids, list) else None
+        return cut_at_stop(choice.get("text", ""), req.stop), usage.get("completion_tokens"), ids
 
-    def _one(self, req) -> Completion:
+    def _one(self, req, seed: int) -> Completion:
         t0 = time.perf_counter()
         ids = self.encode(req.prompt)
-        text, n = self._complete(ids, req, self.temperature)
+        temperature = self.temperature if req.temperature is None else req.temperature
+        text, n, out_ids = self._complete(ids, req, temperature, seed)
         tries = 1
         ok = None if req.validate is None else req.validate(text)
         if ok is False:
             self.retries += 1
-            text, n = self._complete(ids, req, max(self.temperature, 0.7))
+            text, n, out_ids = self._complete(ids, req, max(temperature, 0.7), (seed + 1) % SEED_RANGE)
             tries, ok = 2, req.validate(text)
-        n = n if n is not None else len(self.encode(text))
+        n = n if n is not None else len(out_ids) if out_ids is not None else len(self.encode(text))
         accepted = ok if req.grammar is not None else None
-        return Completion(text, len(ids), n, accepted,
-                          {"seconds": round(time.perf_counter() - t0, 4), "tries": tries})
+        stats = {"seconds": round(time.perf_counter() - t0, 4), "tries": tries}
+        if out_ids is not None:
+            stats["canonical"] = canonical(self.tokenizer, out_ids)
+        return Completion(text, len(ids), n, accepted, stats, out_ids)
 
     def generate(self, requests) -> list:
-        """Completions for the requests, sent concurrently."""
+        """Completions for the requests, sent concurrently (each with its `seed`, chosen here in order)."""
+        seeds = [self._seed(r) for r in requests]
         with ThreadPoolExecutor(max_workers=max(1, min(self.concurrency, len(requests)))) as pool:
-            return list(pool.map(self._one, requests))
+            return list(pool.map(self._one, requests, seeds))
 
-    def _score_one(self, p: list, cont: str) -> Scored:
-        c = self.encode(cont)
-        body = {"model": self.model, "prompt": self.tokenizer.decode(p + c) if self.text_prompts else p + c, "max_tokens": 1, "temperature": 0.0, "echo": True,
-                "logprobs": 0, "prompt_logprobs": 0}
+    def _score_one(self, p: list, cont) -> Scored:
+        c = continuation_ids(self.tokenizer, cont)
+        body = {"model": self.model, "prompt": self.tokenizer.decode(p + c) if self.text_prompts else p + c,
+                "max_tokens": 1, "temperature": 0.0, "echo": True, "logprobs": 0, "prompt_logprobs": 0}
         choice = self._post("/completions", body)["choices"][0]
-        return Scored(cont, _prompt_logprobs(choice, p + c)[len(p):])
+        text = cont if isinstance(cont, str) else self.tokenizer.decode(c, skip_special_tokens=True)
+        return Scored(text, _prompt_logprobs(choice, p + c)[len(p):], tuple(c))
 
-    def score(self, prompt: str, continuations) -> list:
-        """Per-token log-probabilities of each continuation from the server's prompt log-probs."""
+    def score(self, prompt: str, continuations, dtype: str | None = None) -> list:
+        """Per-token log-probabilities of each continuation (text: with the end token; ids: as they are)
+        from the server's prompt log-probs, in the server's precision (`dtype` cannot change it)."""
         p = self.encode(prompt)
         with ThreadPoolExecutor(max_workers=max(1, min(self.concurrency, len(continuations)))) as pool:
             return list(pool.map(lambda c: self._score_one(p, c), continuations))

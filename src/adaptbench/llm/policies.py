@@ -29,6 +29,13 @@ VARIANTS = {"never_ask": "never_ask"}  # prompt kind -> grammar variant (default
 THOUGHT_TOKENS = 48
 
 
+def sample_key(view, call: str) -> str:
+    """The random stream of one generation (`Request.key`, `llm.sampling`): the episode id (agent, persona,
+    task, scene seed), the step and the call (`thought`, `action`): an episode's samples do not depend on
+    the batch, the worker or the order it ran in."""
+    return f"{view.episode}/{view.step}/{call}"
+
+
 class _Episode:
     """What the policy remembers of one episode."""
 
@@ -58,6 +65,7 @@ class LLMPolicy(Policy):
                              f"context ({self.context} tokens): use --budget {max(self.context - self._reserved(), 0)} "
                              "or less (prompts are cut to the budget), or a model with a longer context")
         self._episodes: dict = {}
+        self.priors: dict = {}  # episode id -> what is known about the user beforehand (the prompt's prior line)
 
     def _reserved(self) -> int:
         """Tokens a step may generate after its prompt (ReAct: a thought, then the action)."""
@@ -88,6 +96,7 @@ class LLMPolicy(Policy):
     def end(self, episode: str) -> None:
         """Forget the episode (and the backend's cache of it)."""
         self._episodes.pop(episode, None)
+        self.priors.pop(episode, None)
         self.backend.release(episode)
 
     def _state(self, episode: str, view) -> _Episode:
@@ -119,7 +128,8 @@ class LLMPolicy(Policy):
             ep.made_after.append(tuple(view.made))
         force = self.force_ask(view)
         prefs, unmet = self._knowledge(ep)
-        kw = {"preferences": prefs, "unmet": unmet, "force_ask": force, "made_after": tuple(ep.made_after)}
+        kw = {"preferences": prefs, "unmet": unmet, "force_ask": force, "made_after": tuple(ep.made_after),
+              "prior": self.priors.get(view.episode, "")}
         prompt = fit(self.backend.tokenizer, lambda omit: self.builder.prompt(view, omit=omit, **kw), self.budget)
         self._check_fits(prompt)
         text = ep.grammar.update(view.observed)
@@ -150,12 +160,13 @@ class LLMPolicy(Policy):
         thoughts = [""] * len(views)
         if self.kind == "react":
             todo = [i for i, (_, _, force) in enumerate(prepared) if not force]
-            outs = boundary.generate(self.backend, [Request(texts[i], None, ("\n",), THOUGHT_TOKENS, session=views[i].episode)
-                                          for i in todo])
+            outs = boundary.generate(self.backend, [Request(texts[i], None, ("\n",), THOUGHT_TOKENS, session=views[i].episode,
+                                                    key=sample_key(views[i], "thought")) for i in todo])
             for i, out in zip(todo, outs, strict=True):
                 thoughts[i] = out.text.strip()
                 texts[i] += thoughts[i] + "\n" + ACTION_PREFIX
-        outs = boundary.generate(self.backend, [Request(t, g, (), self.max_tokens, self._parses, v.episode)
+        outs = boundary.generate(self.backend, [Request(t, g, (), self.max_tokens, self._parses, v.episode,
+                                                sample_key(v, "action"))
                                       for t, (_, g, _), v in zip(texts, prepared, views, strict=True)])
         return [self._decision(p, out, force, thought, prep_seconds / len(views))
                 for (p, _, force), out, thought in zip(prepared, outs, thoughts, strict=True)]
@@ -172,4 +183,9 @@ class LLMPolicy(Policy):
                  "prepare_seconds": round(prep, 4), **out.stats}
         if thought:
             stats["thought"] = thought
+        if out.token_ids is not None:  # what the model generated (after the healed prompt: stats["healed"])
+            stats["token_ids"] = list(out.token_ids)
+        over = prompt.meta.get("over_budget", 0)
+        if over:  # the shortest prompt (every older step left out) still exceeds the budget
+            stats["over_budget"], stats["over_budget_tokens"] = True, over
         return Decision(out.text, None, out.text, stats)

@@ -43,6 +43,13 @@ def state_text(world) -> str:
     return "\n".join(lines)
 
 
+def user_config(backend) -> dict:
+    """What identifies an LLM user on `backend`: the backend's configuration, `user_`-prefixed, at
+    temperature 0 (the user answers greedily even when it shares the agent's sampling backend)."""
+    own = {k: v for k, v in backend.config().items() if k not in ("temperature", "sample_seed")}
+    return {"user": "llm", **{f"user_{k}": v for k, v in {**own, "temperature": 0.0}.items()}}
+
+
 def _one_line(text: str) -> bool:
     return bool(text.strip()) and "\n" not in text.strip()
 
@@ -68,7 +75,7 @@ class LLMUser:
 
     def config(self) -> dict:
         """What identifies this user (recorded with each episode)."""
-        return {"user": "llm", **{f"user_{k}": v for k, v in self.backend.config().items()}}
+        return user_config(self.backend)
 
     def _actions_since_question(self) -> tuple:
         if self.env is None:
@@ -94,7 +101,8 @@ class LLMUser:
         return fit(self.backend.tokenizer, build, self.budget)
 
     def _request(self, text: str) -> Request:
-        return Request(text, LINE_GRAMMAR, ("\n",), self.max_tokens, _one_line, session=self.session)
+        return Request(text, LINE_GRAMMAR, ("\n",), self.max_tokens, _one_line, session=self.session,
+                       temperature=0.0)  # greedy whatever the backend's temperature (it may be the agent's)
 
     def _rendered(self, question: str, dialogue: tuple) -> str:
         return render(self.backend.tokenizer, self.prompt(question, dialogue))

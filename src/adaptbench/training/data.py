@@ -4,24 +4,34 @@ Rollouts follow the student (batched over episodes through the backend); at each
 teacher proposes a^t from the student's state; steps where both act the same (same parsed action) and steps
 after two failures in a row are skipped; otherwise the student reflects (or the topic proposer asks), the
 user answers, P(a^t|x), P(a^t|x,q,answer), P(a^s|x) are scored through the backend's `score`, and the
-decision rule (`decide`) picks the chosen completion. Rows go to `pairs.jsonl` as they are made.
+decision rule (`decide`) picks the chosen completion. The rejected answer (the student's own) keeps the
+ids the student generated (`rejected_token_ids`, `training.ids`). Rows go to `pairs.jsonl` as they are made.
+
+With `interactions=2` each (persona, task, seed) runs twice in the same scene: the second interaction's
+student prompt carries the prior-knowledge summary of the first (`prior.prior_summary`: what the user
+answered). The teacher is the scripted oracle or an LLM (`relabel.LLMTeacher`). `build` runs the units on
+worker processes (`harness.workers.run_stream_pool`), the parent writing every row.
 """
 
 from __future__ import annotations
 
 import time
 from collections import Counter
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from ..harness.batches import episode_id
 from ..harness.episode import Episode
 from ..harness.rollout import Job
+from ..harness.workers import run_stream_pool, stop_signals
 from ..llm.backend import Request
 from ..llm.chat import render
+from ..llm.policies import sample_key
 from ..llm.prompts import ACTION_PREFIX
 from ..runtime.env import make_env
 from .dataset import PairStore, mix_line, row_key
 from .decide import EPS1, EPS2, decide
+from .ids import rejected_turn_ids
+from .prior import prior_summary
 from .relabel import (
     ScriptedTeacher,
     answered_prompt,
@@ -31,7 +41,7 @@ from .relabel import (
     topics,
 )
 from .rows import completion_tokens, fit_row
-from .score import step_probabilities
+from .score import SCORE_DTYPE, step_probabilities
 
 PHASES = ("student", "teacher", "reflection", "scoring")
 
@@ -50,6 +60,8 @@ class DataSettings:
     eps2: float = EPS2
     max_length: int | None = 1024
     width: int = 8
+    workers: int = 1
+    max_steps: int | None = None  # step budget per episode (None: the environment's, 50)
 
 
 @dataclass
@@ -68,45 +80,65 @@ class _Run:
     job: Job
     interaction: int
     episode: Episode
+    prior: str = ""
     failures: int = 0
     made_after: list = field(default_factory=list)
 
 
+def units(settings: DataSettings) -> list:
+    """(persona, task, seed) in order: each runs its interactions one after the other."""
+    return [(p, t, s) for p in settings.personas for t in settings.tasks for s in settings.seeds]
+
+
 def jobs(settings: DataSettings) -> list:
     """(persona, task, seed, interaction) in order."""
-    return [(p, t, s, i) for p in settings.personas for t in settings.tasks for s in settings.seeds
-            for i in range(1, settings.interactions + 1)]
+    return [(*u, i) for u in units(settings) for i in range(1, settings.interactions + 1)]
 
 
 class Builder:
     """Builds the pairs of a selection with one student and one teacher."""
 
-    def __init__(self, domain, student, settings: DataSettings, store: PairStore, model_name: str):
+    def __init__(self, domain, student, settings: DataSettings, store: PairStore, model_name: str, teacher=None):
         self.domain, self.student, self.s, self.store = domain, student, settings, store
-        self.teacher = ScriptedTeacher(domain)
+        self.teacher = teacher if teacher is not None else ScriptedTeacher(domain)
         self.model_name = model_name
         self.topics = topics(domain)
         self.times = Timings()
         self.parser = student.index.parser
 
     def run(self, progress=None) -> None:
-        """Every job, `width` episodes at a time."""
-        todo = jobs(self.s)
+        """Every unit, `width` at a time (each unit's interactions in turn); `progress(episodes done,
+        episodes)`."""
+        todo = units(self.s)
+        n = self.s.interactions
         for i in range(0, len(todo), self.s.width):
-            self._batch(todo[i:i + self.s.width])
+            self.run_units(todo[i:i + self.s.width])
             if progress is not None:
-                progress(min(i + self.s.width, len(todo)), len(todo))
+                progress(n * min(i + self.s.width, len(todo)), n * len(todo))
 
-    def _start(self, persona, task, seed, interaction) -> _Run:
+    def run_units(self, batch: list) -> None:
+        """Interaction 1 of every (persona, task, seed) of `batch` stepped together, then interaction 2
+        with the summary of each one's first as its prior knowledge, and so on."""
+        priors: dict = {}
+        for i in range(1, self.s.interactions + 1):
+            runs = [self._start(*u, i, priors.get(u, "")) for u in batch]
+            self._episodes(runs)
+            for u, r in zip(batch, runs, strict=True):
+                priors[u] = prior_summary(r.episode)
+
+    def _start(self, persona, task, seed, interaction, prior: str = "") -> _Run:
         job = Job(self.student.name, persona, task, seed)
-        env = make_env(self.domain, persona, task, seed)
+        env = make_env(self.domain, persona, task, seed,
+                       **({"max_steps": self.s.max_steps} if self.s.max_steps else {}))
         ep = Episode(f"{episode_id(job)}/i{interaction}", env)
         self.student.start(ep.id, env)
-        self.teacher.start(ep.id, env)
-        return _Run(job, interaction, ep)
+        self.student.priors[ep.id] = prior
+        t0 = time.perf_counter()
+        self.teacher.start(ep.id, env)  # the oracle searches its plan here: teacher time
+        self.times.add("teacher", t0)
+        return _Run(job, interaction, ep, prior)
 
-    def _batch(self, batch) -> None:
-        runs = [self._start(*j) for j in batch]
+    def _episodes(self, runs: list) -> None:
         while True:
             live = [r for r in runs if not r.episode.done]
             if not live:
@@ -134,7 +166,7 @@ class Builder:
 
     def _consider(self, todo: list) -> None:
         t0 = time.perf_counter()
-        acts = [self.teacher.action(v) for _, v, _ in todo]
+        acts = self.teacher.actions([v for _, v, _ in todo])
         self.times.add("teacher", t0)
         asks = []
         for (r, v, d), a_t in zip(todo, acts, strict=True):
@@ -159,7 +191,8 @@ class Builder:
         if self.s.questions == "topics":
             out = [topic_question(self.topics, a_t, v.task_text) for _, v, _, a_t in asks]
         else:
-            reqs = [reflection_request(self.student, v, d.action, a_t, tuple(r.made_after)) for r, v, d, a_t in asks]
+            reqs = [replace(reflection_request(self.student, v, d.action, a_t, tuple(r.made_after)),
+                            key=sample_key(v, "reflection")) for r, v, d, a_t in asks]  # the episode's own stream
             out = [c.text.strip() for c in self.student.backend.generate(reqs)] if reqs else []
         self.times.add("reflection", t0)
         return out
@@ -175,14 +208,20 @@ class Builder:
             t0 = time.perf_counter()
             x = render(tok, prompt)
             xq = render(tok, answered_prompt(self.student, prompt, view, q, answer))
-            probs = step_probabilities(self.student.backend, x, xq, a_t, decision.action)
+            probs = step_probabilities(self.student.backend, x, xq, a_t, decision.action,
+                                       (decision.stats or {}).get("token_ids"), SCORE_DTYPE)
             self.times.add("scoring", t0)
             d = decide(probs.p_teacher, probs.p_teacher_given_answer, probs.p_student, self.s.eps1, self.s.eps2)
             kind, reason = d.kind, d.skip_reason
         chosen = {"question": q, "teacher": a_t}.get(kind)
         fitted, n, cut = fit_row(tok, prompt, completion_tokens(tok, ACTION_PREFIX + decision.action,
                                                                 ACTION_PREFIX + (chosen or "")), self.s.max_length)
-        return self._fields(r, view, decision.action, a_t, q, answer, probs, kind, reason, chosen, fitted, n, cut)
+        ids, canon = rejected_turn_ids(tok, fitted, decision.action, decision.stats)
+        row = self._fields(r, view, decision.action, a_t, q, answer, probs, kind, reason, chosen, fitted, n, cut)
+        row["over_budget"] = bool(fitted.meta.get("over_budget"))  # over max_length even cut to the last step
+        row.update(rejected_token_ids=ids, rejected_canonical=canon,
+                   score_dtype=self.student.backend.score_dtype(SCORE_DTYPE) if probs else None)
+        return row
 
     def _fields(self, r, view, a_s, a_t, q, answer, probs, kind, reason, chosen, fitted, n, cut) -> dict:
         msg = lambda t: [{"role": "assistant", "content": ACTION_PREFIX + t}]  # noqa: E731
@@ -198,7 +237,84 @@ class Builder:
             "eps1": self.s.eps1, "eps2": self.s.eps2, "prompt_tokens": n, "truncated": cut,
             "spec_hash": self.domain.spec_hash, "split": self.s.split, "persona": r.job.persona,
             "task": r.job.task, "seed": r.job.seed, "interaction": r.interaction, "step": view.step,
-            "student_model": self.model_name, "teacher": self.teacher.name}
+            "prior": r.prior, "student_model": self.model_name, "teacher": self.teacher.name,
+            "teacher_model": self.teacher.model}
+
+
+class Sink:
+    """A worker's stand-in for the `PairStore`: the parent's keys (already written) and the rows made
+    since the last `take`."""
+
+    def __init__(self, keys):
+        self.keys, self.rows = set(keys), []
+
+    def done(self, key: tuple) -> bool:
+        """Whether the parent's file already has this step."""
+        return tuple(key) in self.keys
+
+    def append(self, row: dict) -> None:
+        """Keep a row for the parent."""
+        self.rows.append(row)
+
+    def take(self) -> list:
+        """The rows kept so far, forgotten here."""
+        out, self.rows = self.rows, []
+        return out
+
+
+def _chunks(it, n: int):
+    chunk = []
+    for x in it:
+        chunk.append(x)
+        if len(chunk) == n:
+            yield chunk
+            chunk = []
+    if chunk:
+        yield chunk
+
+
+def _work(make_builder, store_keys, width: int):
+    """A worker's loop: `width` units at a time, one record per unit (its rows; the chunk's phase seconds
+    ride on the first)."""
+    def work(jobs):
+        sink = Sink(store_keys)
+        b = make_builder(sink)
+        for chunk in _chunks(jobs, width):
+            before = dict(b.times.seconds)
+            b.run_units(chunk)
+            spent = {k: b.times.seconds[k] - before[k] for k in PHASES}
+            rows: dict = {u: [] for u in chunk}
+            for row in sink.take():
+                rows[(row["persona"], row["task"], row["seed"])].append(row)
+            for j, u in enumerate(chunk):
+                yield u, rows[u], spent if j == 0 else dict.fromkeys(PHASES, 0.0)
+    return work
+
+
+def build(make_builder, settings: DataSettings, store: PairStore, progress=None) -> Timings:
+    """Build every unit's rows into `store`: in this process (rows written as they are made) or, with
+    `settings.workers` > 1, on forked worker processes pulling units from one queue (each unit's rows
+    written when it finishes; a kill loses at most the units in flight, resumed on the next run).
+    `make_builder(store)` makes a `Builder` writing to `store`. Returns the seconds per phase (summed
+    over workers)."""
+    todo = units(settings)
+    if settings.workers <= 1 or len(todo) <= 1:
+        b = make_builder(store)
+        with stop_signals():  # Ctrl-C / SIGTERM: `Interrupted`, every row written so far kept
+            b.run(progress)
+        return b.times
+    times, n = Timings(), settings.interactions
+    width = min(settings.width, -(-len(todo) // settings.workers))  # no worker hoards the units another could run
+    records = run_stream_pool(todo, settings.workers, _work(make_builder, store.keys, width))
+    for done, (_u, rows, spent) in enumerate(records, 1):
+        for row in rows:
+            if not store.done(row_key(row)):
+                store.append(row)
+        for k, v in spent.items():
+            times.seconds[k] += v
+        if progress is not None:
+            progress(n * done, n * len(todo))
+    return times
 
 
 def mix(rows: list) -> Counter:
@@ -206,4 +322,4 @@ def mix(rows: list) -> Counter:
     return Counter(r["kind"] for r in rows)
 
 
-__all__ = ["Builder", "DataSettings", "Request", "jobs", "mix", "mix_line", "row_key"]
+__all__ = ["Builder", "DataSettings", "Request", "Sink", "build", "jobs", "mix", "mix_line", "row_key", "units"]

@@ -18,7 +18,8 @@ TRAINABLE = ("question", "teacher")
 FIELDS = ("prompt", "chosen", "rejected", "kind", "skip_reason", "teacher_action", "student_action", "question",
           "answer", "question_source", "p_teacher", "p_teacher_given_answer", "p_student", "delta_q", "delta_t",
           "eps1", "eps2", "prompt_tokens", "truncated", "spec_hash", "split", "persona", "task", "seed",
-          "interaction", "step", "student_model", "teacher")
+          "interaction", "step", "prior", "student_model", "teacher", "teacher_model", "rejected_token_ids",
+          "rejected_canonical", "score_dtype")
 
 
 def row_key(row: dict) -> tuple:
@@ -89,7 +90,9 @@ class PairStore:
 
 def summarise(rows: list) -> dict:
     """The mix: counts by kind and skip reason, shares of questions and teacher actions, prompt-token
-    statistics and rows truncated (none is ever dropped)."""
+    statistics, rows truncated and rows still over `--max-length` with only the last step left
+    (`over_budget`: kept and flagged, never cut silently; none is ever dropped), rejected answers with
+    canonical / non-canonical / no generated ids, and the precision the probabilities were scored in."""
     kinds = Counter(r["kind"] for r in rows)
     reasons = Counter(r["skip_reason"] for r in rows if r["kind"] == "skipped")
     tokens = [r["prompt_tokens"] for r in rows]
@@ -98,7 +101,17 @@ def summarise(rows: list) -> dict:
             "skip_reasons": dict(reasons), "share": {k: round(kinds[k] / n, 4) if n else 0.0 for k in KINDS_ALL},
             "question_sources": dict(Counter(r["question_source"] for r in rows if r["kind"] == "question")),
             "prompt_tokens": {"min": min(tokens), "max": max(tokens), "mean": round(statistics.fmean(tokens), 1)}
-            if tokens else {}, "truncated": sum(bool(r["truncated"]) for r in rows), "dropped": 0}
+            if tokens else {}, "truncated": sum(bool(r["truncated"]) for r in rows),
+            "over_budget": sum(bool(r.get("over_budget")) for r in rows), "dropped": 0,
+            "rejected_ids": _canonical_counts(rows),
+            "score_dtypes": sorted({r["score_dtype"] for r in rows if r.get("score_dtype")})}
+
+
+def _canonical_counts(rows: list) -> dict:
+    """Rejected answers whose generated ids are / are not the tokenizer's own encoding, and rows
+    without ids (written before they were recorded, or by a backend that returns none)."""
+    flags = Counter(r.get("rejected_canonical") for r in rows)
+    return {"canonical": flags[True], "non_canonical": flags[False], "unknown": flags[None]}
 
 
 KINDS_ALL = ("question", "teacher", "skipped")
@@ -110,4 +123,5 @@ def mix_line(summary: dict) -> str:
     reasons = ", ".join(f"{r} {c}" for r, c in sorted(summary["skip_reasons"].items())) or "none"
     return (f"{summary['pairs']} steps: {k.get('question', 0)} questions ({s['question']:.0%}), "
             f"{k.get('teacher', 0)} teacher actions ({s['teacher']:.0%}), {k.get('skipped', 0)} skipped "
-            f"({reasons}); {summary['truncated']} prompts left-truncated, 0 dropped")
+            f"({reasons}); {summary['truncated']} prompts left-truncated, {summary.get('over_budget', 0)} still over "
+            "--max-length (kept, flagged over_budget), 0 dropped")

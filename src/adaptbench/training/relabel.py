@@ -3,6 +3,9 @@
 - `ScriptedTeacher`: the privileged oracle planning from the student's own state (its plan searched once per
   episode at `start`, then re-executed from the view's known world at every step), so a^t is what the
   teacher would do next in the state the student reached.
+- `LLMTeacher` (`--teacher-model DIR`): a language model with the privileged `teacher` prompt (the persona's
+  preferences, and at every step a reminder of those the verifier finds unmet so far on the student's
+  trajectory) proposing a^t for the student's state under the state's grammar, batched over episodes.
 - `reflection_request`: the reflection prompt (`prompts.reflection_messages`) as a generation under the
   grammar's Ask-only rule: the student proposes the question q.
 - `topic_question`: for a model too small to write questions, a question built from the preferences'
@@ -27,6 +30,7 @@ class ScriptedTeacher:
     """The scripted oracle as a relabeller: `start(episode, env)`, then `action(view)` for any state."""
 
     name = "oracle"
+    model = None
 
     def __init__(self, domain):
         self.policy = OraclePolicy(domain)
@@ -42,9 +46,47 @@ class ScriptedTeacher:
         except StopIteration:
             return "Declare Done"
 
+    def actions(self, views) -> list:
+        """a^t for every view."""
+        return [self.action(v) for v in views]
+
     def end(self, episode: str) -> None:
         """Forget the episode's plan."""
         self.policy.end(episode)
+
+
+class LLMTeacher:
+    """A language-model teacher over its own backend: the `teacher` agent (privileged prompt, unmet
+    preferences reminded each step, the grammar of the student's state). Its episodes are keyed apart from
+    the student's (`/teacher`), so a backend shared with the student never mixes their cached prefixes."""
+
+    name = "llm"
+
+    def __init__(self, backend, domain, model: str, **kw):
+        from ..llm.policies import LLMPolicy
+
+        self.policy = LLMPolicy(backend, domain, "teacher", **kw)
+        self.model = model
+
+    @staticmethod
+    def _key(episode: str) -> str:
+        return f"{episode}/teacher"
+
+    def start(self, episode: str, env) -> None:
+        """Keep the episode's env: the persona's preferences and the verdicts of the student's steps so far."""
+        self.policy.start(self._key(episode), env)
+
+    def actions(self, views) -> list:
+        """a^t for every view: one batched generation."""
+        if not views:
+            return []
+        from dataclasses import replace
+
+        return [d.action for d in self.policy.act_batch([replace(v, episode=self._key(v.episode)) for v in views])]
+
+    def end(self, episode: str) -> None:
+        """Forget the episode."""
+        self.policy.end(self._key(episode))
 
 
 def reflection_request(student, view, student_action: str, teacher_action: str, made_after=()) -> Request:

@@ -1,21 +1,26 @@
-"""Fine-tuning a (tiny) model on recorded trajectories rendered with the planner prompt, so that the tiny
-planner acts sensibly: `adapt model pretrain --model DIR --data runs/oracle.jsonl --out DIR`.
+"""Pretraining a (tiny) model on recorded trajectories rendered with the planner prompt, with TRL's
+`SFTTrainer`: `adapt model pretrain --model DIR --data runs/oracle.jsonl --out DIR`.
 
 Each record is replayed in the simulator (same scene, the offline user) to rebuild the view the agent
 had at every step; the target is the recorded action followed by EOS after the rendered planner prompt
 (`fit` to the token budget). Each step's untruncated prompt is a prefix of the next one's, so the steps
 that fit the budget are packed into one sequence per episode (with no budget: the whole episode) and
 one forward pass trains them all; a step whose prompt has to drop old steps is a sequence of its own.
-A record whose replay does not reproduce its observations (another spec version) is skipped. Loss on
-the action tokens only; plain AdamW, one sequence per update.
+A record whose replay does not reproduce its observations (another spec version) is skipped.
+
+The sequences go to `SFTTrainer` as a tokenized dataset (`input_ids` + `completion_mask`, 1 on every
+action and EOS token): TRL builds the labels from the mask (completion-only loss), never truncates
+(`max_length=None`) and trains one sequence per update (AdamW, warm-up then linear decay, gradients
+clipped at 1), on the CPU by default.
 """
 
 from __future__ import annotations
 
 import json
-import random
-import time
+from dataclasses import dataclass
 from pathlib import Path
+
+IGNORE = -100  # label of a token the loss skips
 
 
 def read_records(paths) -> list:
@@ -54,15 +59,12 @@ def replay_views(domain, record):
     return out
 
 
-IGNORE = -100  # label of a token the loss skips
-
-
 def examples(domain, records, tokenizer, budget: int | None = None, kind: str = "planner") -> tuple:
     """Training sequences `(ids, labels)` (labels: the target token, or IGNORE where there is no loss)
     and how many records were skipped. An episode's steps whose full prompt fits the budget are packed
     into one sequence (each step's prompt is a prefix of the next one's, so one pass trains them all);
     a later step, whose prompt drops old steps, is a sequence of its own."""
-    from .prompts import PromptBuilder
+    from ..llm.prompts import PromptBuilder
 
     builder = PromptBuilder(domain, kind)
     out, skipped = [], 0
@@ -83,7 +85,7 @@ def episode_examples(builder, tokenizer, steps, budget: int | None = None) -> li
 
 def step_example(builder, tokenizer, step, budget: int | None) -> tuple:
     """One step: its prompt (`fit` to the budget) with no loss, then the action and EOS."""
-    from .chat import fit, render
+    from ..llm.chat import fit, render
 
     view, made_after, action = step
     prompt = fit(tokenizer, lambda o: builder.prompt(view, omit=o, made_after=made_after), budget)
@@ -97,7 +99,7 @@ def packed_example(builder, tokenizer, steps, budget: int | None) -> tuple:
     last of them with its action and EOS), labels on every action and EOS; and how many steps it holds.
     (None, 0) when the tokenizer does not split the conversation where the actions start and end (the
     action would then be tokenized differently in the history than when generated)."""
-    from .chat import render
+    from ..llm.chat import render
 
     eos = tokenizer.eos_token
     view, made_after, action = steps[-1]
@@ -123,67 +125,120 @@ def packed_example(builder, tokenizer, steps, budget: int | None) -> tuple:
     return ((ids[:end], labels[:end]) if n else None), n
 
 
-def train(model, data, steps: int, lr: float = 3e-3, seed: int = 0, log=None) -> list:
-    """`steps` AdamW updates, one sequence each (cycled, shuffled; the loss is the mean over its labelled
-    tokens); returns the loss per update."""
-    import torch
+# ------------------------------------------------------------------ TRL
+def completion_dataset(data):
+    """A tokenized `datasets.Dataset` for `SFTTrainer` from `(ids, labels)` sequences: `input_ids` and
+    `completion_mask` (1 where the label is the token itself: the loss is on those tokens only)."""
+    from datasets import Dataset
 
-    rng = random.Random(seed)
-    torch.manual_seed(seed)
-    order = list(range(len(data)))
-    opt = torch.optim.AdamW(model.parameters(), lr=lr, weight_decay=0.0)
-    sched = torch.optim.lr_scheduler.LambdaLR(opt, lambda i: min(1.0, (i + 1) / 50) * max(0.05, 1 - i / steps))
-    model.train()
-    losses, t0, every = [], time.perf_counter(), max(1, steps // 20)
-    for i in range(steps):
-        if i % len(order) == 0:
-            rng.shuffle(order)
-        loss = sequence_loss(model, *data[order[i % len(order)]])
-        opt.zero_grad()
-        loss.backward()
-        torch.nn.utils.clip_grad_norm_(model.parameters(), 1.0)
-        opt.step()
-        sched.step()
-        losses.append(loss.item())
-        if log and (i + 1) % every == 0:
-            spent = time.perf_counter() - t0
-            log(f"update {i + 1}/{steps} loss {sum(losses[-every:]) / every:.3f} "
-                f"({spent:.0f} s, ~{spent / (i + 1) * (steps - i - 1):.0f} s left)")
-    model.eval()
-    return losses
+    for ids, labels in data:
+        if any(t != IGNORE and t != i for i, t in zip(ids, labels, strict=True)):
+            raise ValueError("a label differs from its token: a completion mask cannot express it")
+    return Dataset.from_dict({"input_ids": [list(ids) for ids, _ in data],
+                              "completion_mask": [[int(t != IGNORE) for t in labels] for _, labels in data]})
 
 
-def sequence_loss(model, ids, labels):
-    """Mean cross-entropy of the labelled tokens of one sequence; the output layer is applied to the
-    positions that predict them only."""
-    import torch
+def sft_config(out, steps: int, lr: float, seed: int = 0, batch: int = 1, warmup: int = 50, log_every: int = 10,
+               device: str = "cpu", **extra):
+    """`SFTConfig` for training on already tokenized sequences with completion-only loss: no truncation,
+    no checkpoints, no reports, no gradient checkpointing; float32 on a CPU (TRL defaults to bf16 and
+    gradient checkpointing, both slow there); AdamW without weight decay, warm-up then linear decay."""
+    from trl import SFTConfig
 
-    where = [i - 1 for i, t in enumerate(labels) if t != IGNORE]
-    hidden = model.base_model(input_ids=torch.tensor([ids])).last_hidden_state[0, where]
-    logits = model.get_output_embeddings()(hidden).float()
-    return torch.nn.functional.cross_entropy(logits, torch.tensor([labels[i + 1] for i in where]))
+    cpu = device == "cpu"
+    return SFTConfig(output_dir=str(out), max_steps=steps, learning_rate=lr, seed=seed, data_seed=seed,
+                     per_device_train_batch_size=batch, gradient_accumulation_steps=1, max_length=None,
+                     completion_only_loss=True, lr_scheduler_type="linear", warmup_steps=min(warmup, steps),
+                     weight_decay=0.0, max_grad_norm=1.0, activation_checkpointing=False, bf16=False, fp16=False,
+                     use_cpu=cpu, report_to="none", save_strategy="no", logging_steps=log_every,
+                     disable_tqdm=True, dataloader_num_workers=0, **extra)
+
+
+@dataclass(frozen=True)
+class PretrainResult:
+    """What `pretrain` did: labelled steps, episodes used and skipped, sequences, tokens, updates, the
+    mean loss of the first and of the last (up to) 50 updates, and seconds spent training."""
+
+    examples: int
+    episodes: int
+    skipped: int
+    sequences: int
+    tokens: int
+    steps: int
+    first_loss: float
+    last_loss: float
+    seconds: float
+
+
+def _losses(history) -> list:
+    return [h["loss"] for h in history if "loss" in h and "train_loss" not in h]
+
+
+def _log_callback(log, steps: int):
+    """A TrainerCallback printing the loss and the time left every 5% of the updates."""
+    import time
+
+    from transformers import TrainerCallback
+
+    every = max(1, steps // 20)
+
+    class Log(TrainerCallback):
+        def on_train_begin(self, args, state, control, **kw):
+            self.t0, self.window = time.perf_counter(), []
+
+        def on_log(self, args, state, control, logs=None, **kw):
+            if logs and "loss" in logs:
+                self.window.append(logs["loss"])
+
+        def on_step_end(self, args, state, control, **kw):
+            i = state.global_step
+            if i % every == 0 and self.window:
+                spent = time.perf_counter() - self.t0
+                log(f"update {i}/{steps} loss {sum(self.window) / len(self.window):.3f} "
+                    f"({spent:.0f} s, ~{spent / i * (steps - i):.0f} s left)")
+                self.window = []
+
+    return Log()
 
 
 def pretrain(domain, model_dir, data_paths, out, steps: int = 2000, lr: float = 3e-3, budget: int | None = None,
-             seed: int = 0, threads: int = 1, log=print) -> dict:
-    """Fine-tune the model in `model_dir` on the records in `data_paths`; save to `out`."""
+             seed: int = 0, threads: int = 1, log=print) -> PretrainResult:
+    """Fine-tune the model in `model_dir` on the records in `data_paths` with TRL's `SFTTrainer`
+    (completion-only loss on the actions); save the model and tokenizer to `out`."""
+    import tempfile
+    import time
+
     import torch
-    from transformers import AutoModelForCausalLM, AutoTokenizer
+    from transformers import AutoModelForCausalLM, AutoTokenizer, PrinterCallback, set_seed
+    from trl import SFTTrainer
 
     torch.set_num_threads(threads)
     tok = AutoTokenizer.from_pretrained(model_dir)
-    model = AutoModelForCausalLM.from_pretrained(model_dir, dtype=torch.float32)
     records = read_records(data_paths)
     data, skipped = examples(domain, records, tok, budget)
     if not data:
         raise ValueError(f"no training examples in {', '.join(map(str, data_paths))} "
                          f"({len(records)} records, {skipped} not reproducible with this spec)")
     targets = sum(1 for _, labels in data for t in labels if t == tok.eos_token_id)
+    tokens = sum(len(ids) for ids, _ in data)
     log(f"{targets} steps of {len(records) - skipped} episodes ({skipped} skipped) in {len(data)} sequences, "
-        f"{sum(len(ids) for ids, _ in data)} tokens")
-    losses = train(model, data, steps, lr, seed, log)
-    Path(out).mkdir(parents=True, exist_ok=True)
-    model.save_pretrained(out)
+        f"{tokens} tokens")
+    set_seed(seed)
+    model = AutoModelForCausalLM.from_pretrained(model_dir, dtype=torch.float32)
+    with tempfile.TemporaryDirectory() as scratch:  # the trainer's output_dir: nothing is saved there
+        trainer = SFTTrainer(model=model, args=sft_config(scratch, steps, lr, seed, log_every=1),
+                             train_dataset=completion_dataset(data), processing_class=tok,
+                             callbacks=[_log_callback(log, steps)])
+        trainer.remove_callback(PrinterCallback)  # our callback logs instead (to `log`, not stdout)
+        t0 = time.perf_counter()
+        trainer.train()
+        seconds = time.perf_counter() - t0
+    out = Path(out)
+    model.eval()
+    out.mkdir(parents=True, exist_ok=True)
+    trainer.model.save_pretrained(out)
     tok.save_pretrained(out)
-    return {"examples": targets, "sequences": len(data), "episodes": len(records) - skipped, "skipped": skipped, "steps": steps,
-            "first_loss": sum(losses[:50]) / min(50, len(losses)), "last_loss": sum(losses[-50:]) / min(50, len(losses))}
+    losses = _losses(trainer.state.log_history)
+    head, tail = losses[:50], losses[-50:]
+    return PretrainResult(targets, len(records) - skipped, skipped, len(data), tokens, steps,
+                          sum(head) / max(1, len(head)), sum(tail) / max(1, len(tail)), seconds)

@@ -1,0 +1,22 @@
+"""Models shipped inside the package, named instead of given as a directory: `--model student` is the
+tiny student that can ask (`adapt model student` builds it; docs/training.md), at
+`adaptbench/checkpoints/student/`. A path that exists always wins over a name."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+NAMED = {"student": "checkpoints/student"}
+
+
+def named_path(name: str) -> Path:
+    """The directory of the shipped model `name` (KeyError for an unknown name)."""
+    return Path(__file__).resolve().parent.parent / NAMED[name]
+
+
+def resolve_model(model: str | None) -> str | None:
+    """`model` itself when it is an existing path (or None), else the shipped model of that name, else
+    `model` unchanged (the caller reports a missing directory)."""
+    if model is None or Path(model).exists() or model not in NAMED:
+        return model
+    return str(named_path(model))

@@ -1,0 +1,85 @@
+"""The tiny student that can ask, built by one command with fixed seeds:
+
+    adapt model student --out models/student          # = the checkpoint shipped as `--model student`
+
+1. Teacher trajectories on the split's training personas (its unseen personas are never seen), all 8
+   tasks: `oracle-ask` (the oracle's plan, asking first wherever that plan departs from the defaults) on
+   `ask_seeds`, the plain `oracle` (no questions) on `oracle_seeds`; scene seed 0 is left out of both,
+   for evaluation. Written to OUT/data/*.jsonl (resumable, like `adapt rollout`).
+2. A tiny model built locally (`llm.tiny.init_tiny`: a tokenizer trained on the domain's text, a random
+   Llama from `seed`).
+3. `training.pretrain.pretrain` (TRL `SFTTrainer`, completion-only loss on the actions, prompts rendered
+   with the planner prompt) into OUT, with OUT/student.json saying how it was made.
+"""
+
+from __future__ import annotations
+
+import json
+import platform
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+
+@dataclass(frozen=True)
+class StudentSettings:
+    """How the student is built (the defaults made the shipped checkpoint)."""
+
+    split: str = "0"  # its unseen personas are left out of the data
+    ask_seeds: tuple = tuple(range(1, 5))  # scene seeds of the oracle-ask episodes
+    oracle_seeds: tuple = tuple(range(5, 7))  # scene seeds of the plain oracle episodes
+    hidden: int = 128
+    layers: int = 4
+    vocab: int = 4096
+    steps: int = 800  # updates, one packed episode each
+    lr: float = 2e-3
+    seed: int = 0  # model initialisation and data order
+    workers: int = 2  # rollout processes
+    tasks: tuple = field(default=())  # empty: every task
+
+    def agents(self) -> tuple:
+        """(agent, seeds) of the teacher trajectories."""
+        return (("oracle-ask", self.ask_seeds), ("oracle", self.oracle_seeds))
+
+
+def training_personas(domain, split: str) -> tuple:
+    """The personas of the domain that are not unseen in `split`; ValueError for an unknown split."""
+    unseen = {str(k): v for k, v in domain.unseen.items()}
+    if str(split) not in unseen:
+        raise ValueError(f"unknown split '{split}' (choose from: {', '.join(unseen) or 'none'})")
+    return tuple(p for p in domain.persona if p not in unseen[str(split)])
+
+
+def teacher_data(domain, s: StudentSettings, out: Path, progress: bool = True) -> list:
+    """Roll out the teachers into OUT/data/<agent>.jsonl (episodes already there are kept); the files."""
+    from ..harness.rollout import Job, rollout
+
+    personas, tasks = training_personas(domain, s.split), s.tasks or tuple(domain.task)
+    files = []
+    for agent, seeds in s.agents():
+        path = out / "data" / f"{agent}.jsonl"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        jobs = [Job(agent, p, t, seed) for seed in seeds for p in personas for t in tasks]
+        rollout(jobs, path, workers=s.workers, progress=progress, domain=domain)
+        files.append(path)
+    return files
+
+
+def build_student(domain, out, s: StudentSettings = StudentSettings(), log=print, progress: bool = True) -> dict:
+    """Build the student into `out` (teacher data, a tiny model, TRL pretraining); returns and writes
+    OUT/student.json: the settings, data, losses and seconds per stage."""
+    from ..llm.tiny import init_tiny
+    from .pretrain import pretrain
+
+    out = Path(out)
+    t0 = time.perf_counter()
+    files = teacher_data(domain, s, out, progress)
+    t_data = time.perf_counter() - t0
+    base = init_tiny(domain, out / "init", seed=s.seed, vocab_size=s.vocab, hidden=s.hidden, layers=s.layers)
+    r = pretrain(domain, base, files, out, steps=s.steps, lr=s.lr, seed=s.seed, log=log)
+    info = {"settings": asdict(s), "spec_hash": domain.spec_hash, "data": [str(f.relative_to(out)) for f in files],
+            "pretrain": asdict(r), "seconds": {"data": round(t_data, 1), "pretrain": round(r.seconds, 1),
+                                               "total": round(time.perf_counter() - t0, 1)},
+            "machine": f"{platform.machine()}, torch 1 thread"}
+    (out / "student.json").write_text(json.dumps(info, indent=1) + "\n")
+    return info

@@ -1,0 +1,132 @@
+"""Running a method: rows -> length check -> TRL trainer (LoRA through peft) -> adapter and merged model.
+
+    result = train("dpo", settings, log=print)
+
+OUT holds `settings.json` (the run's settings; resuming with other ones is refused, except the step
+count, logging and threads), `long_rows.jsonl` (rows left out for length, with `--long-rows skip`),
+`checkpoints/checkpoint-N` (every `save_steps` and at the end; a killed run resumes from the last one),
+`log.jsonl` (one line per logged step), `adapter/` (the LoRA adapter and tokenizer), `merged/` (the base
+model with the adapter merged in, a plain model directory every `--model` takes) and `train.json` (rows,
+steps, losses, reward margins, seconds per step).
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ...errors import AdaptError
+from .config import as_dict
+from .encode import Encoder, check_lengths, key_text
+
+RESUMABLE = ("max_steps", "epochs", "save_steps", "logging_steps", "threads", "long_rows", "out")
+
+
+class TrainError(AdaptError):
+    """A run that cannot start or go on (rows too long, another run's OUT): a failure."""
+
+    exit_code = 1
+
+
+@dataclass
+class Prepared:
+    """A method's rows in ids and what was left out (with why)."""
+
+    rows: list
+    left_out: dict = field(default_factory=dict)
+    long: list = field(default_factory=list)
+
+
+def load_tokenizer(model: str):
+    """The model directory's tokenizer (a pad token set to the end token when it has none)."""
+    from transformers import AutoTokenizer
+
+    tok = AutoTokenizer.from_pretrained(model)
+    if tok.pad_token is None:
+        tok.pad_token = tok.eos_token
+    return tok
+
+
+def prepare(method: str, s, tokenizer, spec=None) -> Prepared:
+    """The method's rows from `s.data`, every one length-checked against `s.max_length` (`spec`: the spec
+    directory STaR-GATE replays its rollouts in)."""
+    from . import rows as R
+
+    enc = Encoder(tokenizer)
+    left: dict = {}
+    if method == "star-gate":
+        from ...compiler import load_domain
+        from .stargate import read_rollouts, stargate_rows, top_fraction
+
+        records = read_rollouts(s.data, s.agent)
+        kept = top_fraction(records, s.top)
+        try:
+            encoded, bad = stargate_rows(load_domain(spec), kept, enc, s.max_length)
+        except (KeyError, TypeError) as exc:  # a record without a rollout record's fields
+            raise R.DataError(f"--data {s.data}: a rollout record is malformed ({type(exc).__name__}: {exc})") from None
+        left = {"rollouts": len(records), "rollouts_kept": len(kept), "rollouts_not_replayable": bad}
+    else:
+        pairs = R.read_pairs(s.data)
+        build = {"dpo": R.dpo_rows, "sft": R.sft_rows,
+                 "no-reflection": lambda p, e: R.no_reflection_rows(p, e, s.no_gain)}[method]
+        try:
+            encoded = build(pairs, enc)
+        except (KeyError, TypeError, ValueError) as exc:  # a row without the dataset contract's fields
+            raise R.DataError(f"--data {s.data}: a row of pairs.jsonl is malformed ({type(exc).__name__}: "
+                              f"{exc}); rebuild it with `adapt train data`") from None
+        left = {"pairs": len(pairs)}
+    if not encoded:
+        raise TrainError(f"--data {s.data}: no rows to train {method} on ({json.dumps(left)})")
+    kept, long = check_lengths(encoded, s.max_length)
+    return Prepared(kept, left, long)
+
+
+def report_long(p: Prepared, s, out: Path) -> str | None:
+    """Refuse (TrainError listing them) or, with `long_rows` skip, write them to OUT/long_rows.jsonl and
+    return the line that says so; None when every row fits."""
+    if not p.long:
+        return None
+    worst = max(p.long, key=lambda r: r.tokens)
+    head = (f"{len(p.long)} of {len(p.long) + len(p.rows)} rows do not fit --max-length {s.max_length} (the "
+            f"longest: {worst.tokens} tokens, prompt {worst.prompt_tokens}, {key_text(worst.key)})")
+    if s.long_rows == "refuse":
+        raise TrainError(f"{head}; raise --max-length, rebuild the data with a smaller `adapt train data "
+                         "--max-length`, or pass --long-rows skip to leave them out (listed in OUT/long_rows.jsonl)")
+    with (out / "long_rows.jsonl").open("w", encoding="utf-8") as f:
+        for r in p.long:
+            f.write(json.dumps({"key": list(r.key), "tokens": r.tokens, "prompt_tokens": r.prompt_tokens}) + "\n")
+    if not p.rows:
+        raise TrainError(f"{head}: no row is left to train on")
+    return f"{head}: left out (--long-rows skip), listed in {out / 'long_rows.jsonl'}"
+
+
+def _recorded(s) -> dict:
+    """The settings as settings.json records them (the data and model as absolute paths)."""
+    return {**as_dict(s), "data": str(Path(s.data).resolve()), "model": str(Path(s.model).resolve())}
+
+
+def check_resume(s, out: Path) -> None:
+    """Refuse to go on with a run in OUT whose settings differ (but for RESUMABLE)."""
+    path = out / "settings.json"
+    now = _recorded(s)
+    if path.is_file():
+        before = json.loads(path.read_text())
+        diff = sorted(k for k in now if k not in RESUMABLE and before.get(k) != now[k])
+        if diff:
+            changes = ", ".join(f"{k} {before.get(k)} -> {now[k]}" for k in diff)
+            raise TrainError(f"--out {out} holds a run with other settings ({changes}); use another --out or "
+                             "the same settings to resume")
+
+
+def write_settings(s, out: Path) -> None:
+    """OUT/settings.json (once the trainer is built: settings it refused are not recorded)."""
+    (out / "settings.json").write_text(json.dumps(_recorded(s), indent=2) + "\n")
+
+
+def last_checkpoint(out: Path) -> str | None:
+    """The newest complete checkpoint under OUT/checkpoints (its trainer state written), or None."""
+    root = out / "checkpoints"
+    done = [p for p in root.glob("checkpoint-*") if (p / "trainer_state.json").is_file()
+            and p.name.split("-")[-1].isdigit()]
+    return str(max(done, key=lambda p: int(p.name.split("-")[-1]))) if done else None

@@ -1,0 +1,73 @@
+"""The tiny student that can ask: `--model student` names the checkpoint shipped in the package, which,
+greedy, completes a dish and asks; `adapt model student` builds one (slow)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from .conftest import SKIP_MODELS
+
+
+def test_a_name_resolves_to_the_shipped_checkpoint_and_a_path_wins(tmp_path, monkeypatch):
+    from adaptbench.llm.named import named_path, resolve_model
+
+    shipped = named_path("student")
+    assert (shipped / "config.json").is_file() and (shipped / "model.safetensors").is_file()
+    assert (shipped / "tokenizer.json").is_file() and (shipped / "student.json").is_file()
+    assert resolve_model("student") == str(shipped)
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "student").mkdir()
+    assert resolve_model("student") == "student"  # a directory of that name wins over the name
+    assert resolve_model("no/such/model") == "no/such/model" and resolve_model(None) is None
+
+
+@SKIP_MODELS
+def test_the_shipped_student_completes_a_dish_and_asks(tmp_path, capsys):
+    from adaptbench.cli import main
+
+    out = tmp_path / "r.jsonl"
+    assert main(["rollout", "--agent", "planner", "--model", "student", "--personas", CASE[0], "--tasks", CASE[1],
+                 "--seeds", "0", "--out", str(out), "--quiet"]) == 0
+    rec = json.loads(out.read_text().splitlines()[0])
+    actions = [s["action"] for s in rec["steps"]]
+    assert rec["questions"] >= 1 and any(a.startswith("Ask ") for a in actions), actions
+    assert rec["completed"], actions  # at least one dish made and served
+    assert sum(s["ok"] for s in rec["steps"]) >= len(rec["steps"]) // 2, actions
+
+
+CASE = ("mark", "cereal_coffee")  # split 0 unseen persona, scene seed 0 (never trained on)
+
+
+@pytest.mark.slow
+@SKIP_MODELS
+def test_cli_builds_a_student(tmp_path, capsys):
+    """`adapt model student` at smoke scale: teacher data, a tiny model, TRL pretraining (~1 min)."""
+    from adaptbench.cli import main
+
+    out = tmp_path / "st"
+    assert main(["model", "student", "--out", str(out), "--tasks", "cereal", "--ask-seeds", "1", "--oracle-seeds",
+                 "2", "--steps", "2", "--hidden", "32", "--layers", "1", "--workers", "1", "--quiet"]) == 0
+    info = json.loads((out / "student.json").read_text())
+    assert info["pretrain"]["episodes"] == 2 * 12 and info["pretrain"]["skipped"] == 0
+    lines = [json.loads(x) for f in ("oracle-ask", "oracle") for x in (out / "data" / f"{f}.jsonl").read_text().splitlines()]
+    assert {r["persona"] for r in lines}.isdisjoint({"leila", "lisa", "mark", "samantha"})  # split 0's unseen
+    assert any(r["questions"] for r in lines if r["agent"] == "oracle-ask")
+    assert not any(r["questions"] for r in lines if r["agent"] == "oracle")
+    assert Path(out / "model.safetensors").is_file()
+    assert main(["model", "student", "--out", str(out), "--split", "9"]) == 2
+
+
+def test_train_commands_take_the_shipped_students_name():
+    """`--student student` (adapt train data) and `--model student` (the trainers, GRPO) name the shipped
+    checkpoint, as `adapt rollout --model student` does."""
+    from types import SimpleNamespace
+
+    from adaptbench.cli.train import _check_data_args
+    from adaptbench.llm.named import named_path
+
+    args = SimpleNamespace(student="student", teacher_model=None, workers=1, device="cpu")
+    _check_data_args(args)
+    assert args.student == str(named_path("student"))

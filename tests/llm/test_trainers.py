@@ -1,0 +1,293 @@
+"""`adapt train dpo|sft|no-reflection|star-gate` (adaptbench.training.trainers): settings from a file and flags,
+rows in the planner's own tokens, every row's length checked (a long row is reported, never dropped), the
+STaR-GATE prompts rebuilt as the planner renders them, and the chain data -> dpo -> rollout --model
+OUT/merged end to end; resume after a kill (slow)."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+from adaptbench.training.trainers.config import (
+    DPOSettings,
+    NoReflectionSettings,
+    SettingsError,
+    load_settings,
+)
+
+from .conftest import SKIP_MODELS, play
+
+REQUIRED = {"data": "d", "model": "m", "out": "o"}
+
+
+def test_settings_defaults_are_the_release_s():
+    s = load_settings(DPOSettings, REQUIRED)
+    assert (s.lora_r, s.lora_alpha, s.beta, s.loss, s.lr) == (4, 16, 0.1, "sigmoid", 1e-4)
+    assert s.targets() == ["q_proj", "v_proj"]
+    assert load_settings(DPOSettings, REQUIRED | {"lora_targets": "all-linear"}).targets() == "all-linear"
+
+
+def test_config_file_then_flags_override(tmp_path):
+    f = tmp_path / "dpo.yaml"
+    f.write_text("data: runs/data\nmodel: models/tiny\nout: runs/dpo\nlr: 2.0e-4\nmax-steps: 30\nloss: ipo\n")
+    s = load_settings(DPOSettings, {}, f)
+    assert (s.data, s.lr, s.max_steps, s.loss, s.beta) == ("runs/data", 2e-4, 30, "ipo", 0.1)
+    s = load_settings(DPOSettings, {"loss": "sigmoid_norm", "max_steps": 5}, f)
+    assert (s.loss, s.max_steps, s.lr) == ("sigmoid_norm", 5, 2e-4)  # flags win, the file keeps the rest
+
+
+def test_cli_flags_reach_the_settings(tmp_path):
+    from adaptbench.cli.main import build_parser
+    from adaptbench.training.trainers.config import given_flags
+
+    f = tmp_path / "nr.yaml"
+    f.write_text("data: a\nmodel: b\nout: c\nno_gain: true\n")
+    args = build_parser().parse_args(["train", "no-reflection", "--config", str(f), "--no-no-gain", "--beta", "0.2"])
+    s = load_settings(NoReflectionSettings, given_flags(args, NoReflectionSettings), args.config)
+    assert (s.no_gain, s.beta, s.out) == (False, 0.2, "c")
+
+
+@pytest.mark.parametrize(("text", "flags", "says"), [
+    ("data: a\nmodel: b\nout: c\nbeta_: 1\n", {}, "unknown setting beta_"),
+    ("data: a\nmodel: b\nout: c\nloss: hinge\n", {}, "loss must be one of sigmoid, ipo, sigmoid_norm"),
+    ("data: a\nmodel: b\nout: c\nbatch: four\n", {}, "'four' is not a valid batch"),
+    ("data: a\nmodel: b\n", {}, "missing --out"),
+    ("- a list\n", {}, "expected a mapping"),
+    ("data: a\nmodel: b\nout: c\n", {"max_steps": 0}, "--max-steps must be at least 1"),
+])
+def test_bad_settings_are_named(tmp_path, text, flags, says):
+    f = tmp_path / "s.yaml"
+    f.write_text(text)
+    with pytest.raises(SettingsError, match=says):
+        load_settings(DPOSettings, flags, f)
+
+
+def test_bad_config_is_one_line_and_exit_2(tmp_path, capsys):
+    from adaptbench.cli.main import main
+
+    assert main(["train", "dpo", "--config", str(tmp_path / "none.yaml")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("adapt: --config") and err.count("\n") == 1
+
+
+def _row(step, kind, prompt, chosen="Look for pan", rejected="Look for eggs", reason=None):
+    return {"prompt": prompt, "kind": kind, "skip_reason": reason, "persona": "sarah", "task": "eggs", "seed": 0,
+            "interaction": 1, "step": step, "truncated": False, "teacher_action": "Look for pan",
+            "student_action": rejected, "question": None,
+            "chosen": None if kind == "skipped" else [{"role": "assistant", "content": "Action: " + chosen}],
+            "rejected": [{"role": "assistant", "content": "Action: " + rejected}]}
+
+
+def _messages(n_words):
+    return [{"role": "system", "content": "You help with breakfast. " + "eggs " * n_words},
+            {"role": "user", "content": "What is the next action required to achieve the task: Prepare eggs?"}]
+
+
+def _pairs(out, rows):
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "pairs.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
+    (out / "summary.json").write_text("{}\n")
+
+
+@SKIP_MODELS
+def test_rows_are_the_planner_s_tokens_and_methods_pick_their_rows(backend):
+    from adaptbench.llm.chat import render
+    from adaptbench.llm.prompts import Prompt
+    from adaptbench.training.trainers.encode import Encoder
+    from adaptbench.training.trainers.rows import dpo_rows, no_reflection_rows, sft_rows
+
+    tok = backend.tokenizer
+    rows = [_row(0, "teacher", _messages(5)), _row(1, "question", _messages(5), chosen='Ask "Cheese?"'),
+            _row(2, "skipped", _messages(5), reason="no_gain"), _row(3, "skipped", _messages(5), reason="same_action")]
+    enc = Encoder(tok)
+    d = dpo_rows(rows, enc)
+    assert [r.key[-1] for r in d] == [0, 1]
+    messages = tuple(rows[0]["prompt"])
+    assert list(d[0].prompt) == backend.encode(render(tok, Prompt(messages, "")))  # TRL's layout: the template's
+    full = tok.apply_chat_template([*messages, {"role": "assistant", "content": "Action: Look for pan"}], tokenize=False)
+    assert list(d[0].prompt + d[0].chosen) == tok(full, add_special_tokens=False)["input_ids"]
+    played = backend.encode(render(tok, Prompt(messages, "Action: "))) + tok("Look for pan", add_special_tokens=False)["input_ids"]
+    assert list(d[0].prompt + d[0].chosen)[:len(played)] == played  # what the planner reads and writes, then its end
+    assert tok.decode(d[1].chosen) == 'Action: Ask "Cheese?"<|end|>\n' and tok.eos_token_id in d[1].chosen
+    assert tok.decode(d[0].rejected) == "Action: Look for eggs<|end|>\n"
+    assert [r.key[-1] for r in sft_rows(rows, enc)] == [0, 1] and sft_rows(rows, enc)[0].rejected is None
+    nr = no_reflection_rows(rows, enc)
+    assert [r.key[-1] for r in nr] == [0, 1, 2]  # the question row trains a^t, the no_gain step too
+    assert {tok.decode(r.chosen) for r in nr} == {"Action: Look for pan<|end|>\n"}
+    assert [r.key[-1] for r in no_reflection_rows(rows, enc, no_gain=False)] == [0, 1]
+    generated = dict(rows[0], rejected_token_ids=[5, 6, tok.eos_token_id])  # the student's own ids, as they are
+    got = dpo_rows([generated], enc)[0]
+    assert got.rejected == (5, 6, tok.eos_token_id) and got.generated_rejected and got.chosen == d[0].chosen
+
+
+@SKIP_MODELS
+def test_a_template_that_renders_the_prompt_otherwise_gets_the_generation_layout(tiny):
+    from transformers import AutoTokenizer
+
+    from adaptbench.training.trainers.encode import Encoder
+
+    tok = AutoTokenizer.from_pretrained(tiny)
+    tok.chat_template = tok.chat_template.replace("<|assistant|>\n{% endif %}", "<|assistant|>\nthink\n{% endif %}")
+    prompt, (chosen,), trl_layout = Encoder(tok).row(_messages(5), "Look for pan")
+    assert not trl_layout and tok.decode(prompt).endswith("<|assistant|>\nthink\nAction: ")
+    assert list(chosen) == tok("Look for pan", add_special_tokens=False)["input_ids"] + [tok.eos_token_id]
+
+
+@SKIP_MODELS
+def test_long_row_is_reported_never_dropped(backend, tmp_path):
+    from adaptbench.training.trainers import DPOSettings
+    from adaptbench.training.trainers.run import TrainError, prepare, report_long
+
+    data = tmp_path / "data"
+    _pairs(data, [_row(0, "teacher", _messages(5)), _row(1, "teacher", _messages(3000)),
+                  _row(2, "teacher", _messages(8))])
+    s = load_settings(DPOSettings, {"data": str(data), "model": "m", "out": str(tmp_path / "o"), "max_length": 600})
+    p = prepare("dpo", s, backend.tokenizer)
+    assert [r.key[-1] for r in p.rows] == [0, 2] and [r.key[-1] for r in p.long] == [1]
+    with pytest.raises(TrainError, match=r"1 of 3 rows do not fit --max-length 600 .*sarah/eggs/seed 0/interaction "
+                                         r"1/step 1.*--long-rows skip"):
+        report_long(p, s, tmp_path)
+    skip = load_settings(DPOSettings, {**vars(s), "long_rows": "skip"})
+    assert "left out" in report_long(p, skip, tmp_path)
+    listed = [json.loads(x) for x in (tmp_path / "long_rows.jsonl").read_text().splitlines()]
+    assert listed[0]["key"] == ["sarah", "eggs", 0, 1, 1] and listed[0]["tokens"] > 600
+
+
+@SKIP_MODELS
+def test_stargate_prompts_are_the_planner_s(domain, backend):
+    from dataclasses import replace
+
+    from adaptbench.agents.scripted import OraclePolicy
+    from adaptbench.llm.chat import render
+    from adaptbench.training.relabel import student_policy
+    from adaptbench.training.trainers.encode import Encoder
+    from adaptbench.training.trainers.stargate import stargate_rows, top_fraction
+
+    student, oracle = student_policy(backend, domain, budget=1500), OraclePolicy(domain)
+    ep, _ = play(domain, task="eggs", persona="juan", steps=(), agent="planner")
+    student.start(ep.id, ep.env)
+    oracle.start(ep.id, ep.env)
+    prompts, steps = [], []
+    for _ in range(6):  # the planner's prompt for the history so far; the oracle's action is taken
+        view = ep.view()
+        prompts.append(student.act_batch([view])[0].prompt)
+        turn = ep.apply(oracle.act(view))
+        steps.append({"action": turn.action, "observation": turn.observation, "reply": turn.reply})
+    record = {"agent": "planner", "persona": "juan", "task": "eggs", "seed": 0, "steps": steps,
+              "satisfaction_rate": 0.5, "agent_config": {"budget": 1500}}
+    rows, bad = stargate_rows(domain, [record], Encoder(backend.tokenizer), 4096)
+    assert bad == 0 and len(rows) == 6
+    for row, prompt, step in zip(rows, prompts, steps, strict=True):
+        assert list(row.prompt) == backend.encode(render(backend.tokenizer, replace(prompt, prefix="")))
+        assert backend.tokenizer.decode(row.chosen) == f"Action: {step['action']}<|end|>\n"
+    assert any(p.omitted for p in prompts)  # the budget cut old steps, and the rebuild cut the same ones
+    tampered = dict(record, steps=[dict(steps[0], observation="no")] + steps[1:])
+    assert stargate_rows(domain, [tampered], Encoder(backend.tokenizer), 4096) == ([], 1)
+    recs = [dict(record, persona=p, satisfaction_rate=r) for p, r in [("a", 0.1), ("b", 0.9), ("c", 0.5)]]
+    assert [r["persona"] for r in top_fraction(recs, 1 / 3)] == ["b"]
+
+
+def _adapt(*args, timeout=240):
+    return subprocess.run([sys.executable, "-m", "adaptbench.cli", *map(str, args)], capture_output=True, text=True,
+                          timeout=timeout, env={**os.environ, "TQDM_DISABLE": "1"})
+
+
+def _data(tiny, out):
+    got = _adapt("train", "data", "--student", tiny, "--out", out, "--personas", "sarah", "--tasks", "eggs",
+                 "--split", "1", "--batch", "1")
+    assert got.returncode == 0, got.stderr
+    return json.loads((out / "summary.json").read_text())
+
+
+@SKIP_MODELS
+def test_chain_data_dpo_rollout_on_the_merged_model(tiny, tmp_path):
+    data, out = tmp_path / "data", tmp_path / "dpo"
+    summary = _data(tiny, data)
+    assert summary["trainable"] >= 1
+    refused = _adapt("train", "dpo", "--data", data, "--model", tiny, "--out", out, "--max-length", 600)
+    assert refused.returncode == 1 and "do not fit --max-length 600" in refused.stderr
+    assert "Traceback" not in refused.stderr and not (out / "merged").exists()
+    got = _adapt("train", "dpo", "--data", data, "--model", tiny, "--out", out, "--max-steps", 2, "--batch", 1,
+                 "--logging-steps", 1, "--threads", 1)
+    assert got.returncode == 0, got.stderr
+    r = json.loads((out / "train.json").read_text())
+    assert r["rows"] == summary["trainable"] and r["long_rows_left_out"] == 0 and r["steps"] == 2
+    assert r["rows_with_generated_rejected_ids"] == r["rows"]  # the student's own ids (rejected_token_ids)
+    assert r["first"]["loss"] == pytest.approx(0.6931, abs=1e-3)  # log 2: the adapter starts as the reference
+    assert r["last"]["rewards/margins"] > 0 and r["last"]["loss"] < r["first"]["loss"]
+    assert (out / "adapter" / "adapter_config.json").is_file() and (out / "merged" / "config.json").is_file()
+    assert not (out / "merged" / "adapter_config.json").exists()  # a plain model directory
+    runs = tmp_path / "merged.jsonl"
+    played = _adapt("rollout", "--agent", "planner", "--model", out / "merged", "--personas", "sarah", "--tasks",
+                    "eggs", "--seeds", 0, "--max-steps", 2, "--out", runs, "--quiet")
+    assert played.returncode == 0, played.stderr
+    rec = json.loads(runs.read_text())
+    assert rec["agent_config"]["model"] == str(out / "merged") and rec["n_steps"] == 2
+    _eval_tables_and_figures(tmp_path, runs)
+
+
+def _eval_tables_and_figures(tmp_path, runs):
+    """The chain's last link: `adapt eval` reads the trained model's provenance (OUT/train.json) and puts its
+    records in the Reflection-DPO rows of both tables, with both figures drawn."""
+    pytest.importorskip("matplotlib")
+    md, temporal, questions = tmp_path / "tables.md", tmp_path / "temporal.png", tmp_path / "questions.png"
+    got = _adapt("eval", runs, "--markdown", md, "--plot-temporal", temporal, "--plot-questions", questions)
+    assert got.returncode == 0, got.stderr
+    text = md.read_text()
+    assert "**Table 1**" in text and "**Table 2**" in text
+    dpo_rows = [line for line in text.splitlines() if line.startswith("| reflection-dpo |")]
+    assert len(dpo_rows) == 2 and all("missing" not in line for line in dpo_rows)  # Table 1 and Table 2
+    for png in (temporal, questions):
+        assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.mark.slow
+@SKIP_MODELS
+def test_resume_after_kill(tiny, tmp_path):
+    data, out = tmp_path / "data", tmp_path / "dpo"
+    _data(tiny, data)
+    cmd = [sys.executable, "-m", "adaptbench.cli", "train", "dpo", "--data", str(data), "--model", str(tiny),
+           "--out", str(out), "--max-steps", "6", "--save-steps", "2", "--batch", "1", "--logging-steps", "1",
+           "--precompute-ref", "no"]
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.time() + 300
+    while time.time() < deadline and proc.poll() is None and not (out / "checkpoints/checkpoint-2/trainer_state.json").exists():
+        time.sleep(0.2)
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    assert not (out / "train.json").exists()
+    again = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
+    assert again.returncode == 0, again.stderr
+    assert "resuming from" in again.stderr and "checkpoint-" in again.stderr
+    r = json.loads((out / "train.json").read_text())
+    assert r["steps"] == 6 and r["steps_run"] < 6
+    other = subprocess.run(cmd[:-2] + ["--lr", "0.5"], capture_output=True, text=True, timeout=120)
+    assert other.returncode == 1 and "holds a run with other settings (lr" in other.stderr
+
+
+@pytest.mark.slow
+@SKIP_MODELS
+def test_sft_no_reflection_and_star_gate_train_and_merge(tiny, tmp_path):
+    from adaptbench.cli.main import main
+
+    data, runs = tmp_path / "data", tmp_path / "student.jsonl"
+    summary = _data(tiny, data)
+    played = _adapt("rollout", "--agent", "planner", "--model", tiny, "--personas", "sarah,ron", "--tasks", "eggs",
+                    "--seeds", 0, "--max-steps", 3, "--out", runs, "--quiet")
+    assert played.returncode == 0, played.stderr
+    common = ["--model", str(tiny), "--max-steps", "1", "--batch", "2", "--logging-steps", "1"]
+    for method, src in (("sft", data), ("no-reflection", data), ("star-gate", runs)):
+        out = tmp_path / method
+        assert main(["train", method, "--data", str(src), "--out", str(out), *common]) == 0
+        r = json.loads((out / "train.json").read_text())
+        assert r["steps"] == 1 and (out / "merged" / "config.json").is_file()
+        if method == "star-gate":  # the top third of 2 rollouts: 1 record of 3 steps
+            assert (r["rollouts"], r["rollouts_kept"], r["rows"]) == (2, 1, 3)
+        else:
+            assert r["rows"] >= summary["trainable"] and r["last"]["loss"] > 0
