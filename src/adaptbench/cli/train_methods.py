@@ -30,11 +30,6 @@ DESCRIPTIONS = {
 def _cmd(method: str):
     def run(args) -> int:
         import importlib.util
-
-        missing = [m for m in ("torch", "transformers", "trl", "peft", "datasets") if importlib.util.find_spec(m) is None]
-        if missing:
-            print(f"adapt: train {method} needs {', '.join(missing)}: pip install -e '.[train]'", file=sys.stderr)
-            return 1
         from dataclasses import replace
         from pathlib import Path
 
@@ -43,8 +38,12 @@ def _cmd(method: str):
         from ..training.trainers.config import given_flags, load_settings
 
         cls = METHODS[method]
-        s = load_settings(cls, given_flags(args, cls), args.config)
+        s = load_settings(cls, given_flags(args, cls), args.config)  # usage errors first: they need no torch
         s = replace(s, model=resolve_model(s.model))  # `student`: the shipped tiny student
+        missing = [m for m in ("torch", "transformers", "trl", "peft", "datasets") if importlib.util.find_spec(m) is None]
+        if missing:
+            print(f"adapt: train {method} needs {', '.join(missing)}: pip install -e '.[train]'", file=sys.stderr)
+            return 1
         if not (Path(s.model) / "config.json").is_file():
             print(f"adapt: --model {s.model} is not a model directory (no config.json)", file=sys.stderr)
             return 2
