@@ -38,25 +38,12 @@ def read_records(paths) -> list:
 
 
 def replay_views(domain, record):
-    """(view, made_after, action) for each step of a record, rebuilt by replaying it; None when the
-    replay's observations differ from the record's."""
-    from ..agents.users import OfflineUser
-    from ..harness.episode import Episode
-    from ..harness.policy import Decision
-    from ..runtime.env import Env
+    """(view, made_after, action) for each step of a record, rebuilt by replaying it (`training.replay`);
+    None when the replay differs from the record."""
+    from .replay import replay
 
-    persona, task = domain.persona[record["persona"]], domain.task[record["task"]]
-    env = Env(domain, task.id, persona.id, record["seed"], user=OfflineUser(domain, persona, task))
-    ep = Episode(f"{record['agent']}/{persona.id}/{task.id}/{record['seed']}", env)  # the rollout's episode id
-    out, made_after = [], []
-    for step in record["steps"]:
-        view = ep.view()
-        out.append((view, tuple(made_after), step["action"]))
-        ep.apply(Decision(step["action"]))
-        if ep.history[-1].observation != step["observation"]:
-            return None
-        made_after.append(ep.view().made)
-    return out
+    steps = replay(domain, record)
+    return None if steps is None else [(v, m, s["action"]) for (v, m), s in zip(steps, record["steps"], strict=True)]
 
 
 def examples(domain, records, tokenizer, budget: int | None = None, kind: str = "planner") -> tuple:

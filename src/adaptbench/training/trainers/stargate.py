@@ -21,6 +21,7 @@ from pathlib import Path
 
 from ...llm.chat import fit
 from ...llm.prompts import PromptBuilder
+from ..replay import replay
 from .encode import Encoded, Encoder
 from .rows import DataError
 
@@ -60,25 +61,6 @@ def top_fraction(records: list, top: float) -> list:
     """The best `top` of the records by satisfaction rate (at least one)."""
     order = sorted(records, key=lambda r: (-r["satisfaction_rate"], r["persona"], r["task"], r["seed"]))
     return order[:max(1, round(len(order) * top))]
-
-
-def replay(domain, record):
-    """(view, made_after) before each step of a record, rebuilt in the simulator; None when the replay's
-    observations or replies differ from the record's."""
-    from ...harness.episode import Episode
-    from ...harness.policy import Decision
-    from ...runtime.env import make_env
-
-    env = make_env(domain, record["persona"], record["task"], record["seed"])
-    ep = Episode(f"{record['agent']}/{record['persona']}/{record['task']}/{record['seed']}", env)
-    out, made_after = [], []
-    for step in record["steps"]:
-        out.append((ep.view(), tuple(made_after)))
-        turn = ep.apply(Decision(step["action"]))
-        if turn.observation != step["observation"] or (turn.reply or "") != (step.get("reply") or ""):
-            return None
-        made_after.append(ep.view().made)
-    return out
 
 
 def step_row(builder, enc: Encoder, key: tuple, view, made_after, action: str, budget) -> Encoded:
