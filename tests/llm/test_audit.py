@@ -90,3 +90,37 @@ def test_verdicts_count_only_words_the_question_did_not_contain(domain):
     assert verdict(pref, q, "Scrambled, with a splash of whole milk.") == "hit"
     assert verdict(pref, q, "I'm flexible about eggs.") == "non-answer"
     assert verdict(pref, q, "Sunny weather today.") == "miss"
+
+
+class _Counting(_Scripted):
+    """A scripted backend that records how many requests each `generate` call carried."""
+
+    def __init__(self, tokenizer, rule):
+        super().__init__(tokenizer, rule)
+        self.sizes: list = []
+
+    def generate(self, requests):
+        self.sizes.append(len(requests))
+        return super().generate(requests)
+
+
+def test_answers_are_generated_in_batches(domain):
+    """The audit asks `batch` users at a time (one generate call each), not one by one."""
+    from adaptbench.agents.users import OfflineUser
+    from adaptbench.llm.audit import audit
+    from adaptbench.qa.fidelity import LOCATION_PROBES
+
+    juan = OfflineUser(domain, domain.persona["juan"])
+    backend = _Counting(_tokenizer(domain), juan.answer)
+    probes, s = audit(domain, backend, ["juan"], progress=None, batch=5)
+    assert max(backend.sizes) == 5 and sum(backend.sizes) == 2 * len(probes) + len(LOCATION_PROBES)  # twice each
+    assert s["consistent"]
+
+
+def test_an_answer_that_changes_when_asked_again_is_inconsistent(domain):
+    from adaptbench.llm.audit import audit
+
+    calls = iter(range(10 ** 6))
+    _, s = audit(domain, _Scripted(_tokenizer(domain), lambda q: f"whole milk {next(calls)}"), ["juan"],
+                 progress=None)
+    assert not s["consistent"]

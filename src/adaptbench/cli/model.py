@@ -153,6 +153,7 @@ def add_users_check_options(q) -> None:
     q.add_argument("--user-model", help="model directory of the LLM user")
     q.add_argument("--personas", default="all", help="--llm: 'all' or comma-separated ids")
     q.add_argument("--max-probes", type=int, help="--llm: probes per preference (default all)")
+    q.add_argument("--batch", type=int, help="--llm: answers generated together in one batch (default 8)")
     q.add_argument("--device", default="cpu")
     q.add_argument("--dtype", choices=["auto", "float32", "bfloat16", "float16"],
                    help="default: auto, or bfloat16 for a real-sized model on a CPU with bfloat16 instructions")
@@ -171,7 +172,10 @@ def users_check_llm(args) -> int:
     bad = [p for p in personas if p not in domain.persona]
     if bad:
         _fail(f"unknown persona {', '.join(bad)} (choose from: {', '.join(domain.persona)}, or all)")
-    probes, s = audit(domain, _backend(args, args.user_model), personas, args.max_probes)
+    if args.batch is not None and args.batch < 1:
+        _fail(f"--batch must be at least 1, not {args.batch}")
+    args.batch = args.batch or 8
+    probes, s = audit(domain, _backend(args, args.user_model), personas, args.max_probes, batch=args.batch)
     for p in probes:
         if args.verbose:
             print(f"{p.verdict.upper():<10} {p.persona}.{p.preference}: {p.question!r} -> {p.answer!r}")

@@ -95,23 +95,28 @@ def leaks(env: Env, answer: str) -> bool:
 
 
 def _plan(domain, personas, max_probes):
-    """[(persona, preference, task, questions)] for every preference of the personas."""
+    """[(persona, preference, task, question)] for every probe of every preference of the personas,
+    ordered by persona and task: successive prompts then share everything but the question, which the
+    transformers backend reads once (kept session caches are shared by prefix)."""
     out = []
     for persona in (domain.persona[p] for p in (personas or list(domain.persona))):
+        rows = []
         for pref in persona.preferences:
             tasks = [t for t in domain.tasks if applies_to(domain, pref, t)] or list(domain.tasks)
-            out.append((persona, pref, tasks[0], probes(pref)[:max_probes]))
+            rows += [(persona, pref, tasks[0], q) for q in probes(pref)[:max_probes]]
+        order = {t.id: i for i, t in enumerate(domain.tasks)}
+        out += sorted(rows, key=lambda r: order[r[2].id])  # stable: preferences keep their order within a task
     return out
 
 
 class _Ticker:
-    """One progress line on stderr per answer (`--quiet` passes None)."""
+    """One progress line on stderr per batch of answers (`--quiet` passes None)."""
 
     def __init__(self, total: int, stream):
         self.total, self.stream, self.done, self.t0 = total, stream, 0, time.perf_counter()
 
-    def tick(self, note: str) -> None:
-        self.done += 1
+    def tick(self, n: int, note: str) -> None:
+        self.done += n
         if self.stream is not None:
             el = time.perf_counter() - self.t0
             eta = el / self.done * (self.total - self.done)
@@ -119,31 +124,46 @@ class _Ticker:
                   file=self.stream, flush=True)
 
 
-def audit(domain, backend, personas=None, max_probes: int | None = None, progress=sys.stderr) -> tuple:
+def _answers(domain, backend, asks: list, batch: int, ticker: _Ticker, label) -> list:
+    """The LLM user's answer to each (persona, task, question), `batch` users answering in one batched
+    generation (`LLMUser.prepare_answers`), each in the task's scene of seed 0."""
+    out = []
+    for i in range(0, len(asks), batch):
+        chunk = asks[i:i + batch]
+        users = [LLMUser(backend, domain, persona, task).bind(Env(domain, task.id, persona.id, 0))
+                 for persona, task, _ in chunk]
+        LLMUser.prepare_answers([(u, q, ()) for u, (_, _, q) in zip(users, chunk, strict=True)])
+        got = [u.answer(q) for u, (_, _, q) in zip(users, chunk, strict=True)]
+        out += got
+        ticker.tick(len(chunk), label(i, got))
+    return out
+
+
+def audit(domain, backend, personas=None, max_probes: int | None = None, progress=sys.stderr,
+          batch: int = 8) -> tuple:
     """Probe the LLM user; returns (probes, summary) with the hit rate, the counts of each verdict,
-    consistency and location leaks. Successive prompts share the persona's opening, which the
-    transformers backend reads once (kept session caches are shared by prefix)."""
+    consistency and location leaks. Answers are generated `batch` at a time; every probe is asked twice,
+    the second time in reversed order (so in other batches), and must get the same answer."""
     plan = _plan(domain, personas, max_probes)
     names_ = list(dict.fromkeys(p.id for p, _, _, _ in plan))
-    ticker = _Ticker(sum(len(q) for *_, q in plan) + len(names_) * len(LOCATION_PROBES), progress)
-    out = []
-    for persona, pref, task, questions in plan:
-        env = Env(domain, task.id, persona.id, 0)
-        user = LLMUser(backend, domain, persona, task).bind(env)
-        offline = OfflineUser(domain, persona, task)
-        for q in questions:
-            a = user.answer(q)
-            ref = offline.answer(q)
-            out.append(Probe(persona.id, pref.id, q, a, verdict(pref, q, a, ref), user.answer(q) == a, ref))
-            ticker.tick(f"{persona.id}.{pref.id}: {out[-1].verdict}")
-    leaked = 0
-    for pid in names_:
-        persona = domain.persona[pid]
-        env = Env(domain, domain.tasks[0].id, pid, 0)
-        user = LLMUser(backend, domain, persona, domain.tasks[0]).bind(env)
-        for q in LOCATION_PROBES:
-            leaked += leaks(env, user.answer(q))
-            ticker.tick(f"{pid}: location probe")
+    locs = [(domain.persona[pid], domain.tasks[0], q) for pid in names_ for q in LOCATION_PROBES]
+    ticker = _Ticker(2 * len(plan) + len(locs), progress)
+    asks = [(persona, task, q) for persona, _, task, q in plan]
+    refs = [OfflineUser(domain, persona, task).answer(q) for persona, _, task, q in plan]
+    verdicts: list = []
+
+    def first(i, got):
+        for (_, pref, _, q), a, ref in zip(plan[i:i + len(got)], got, refs[i:i + len(got)], strict=True):
+            verdicts.append(verdict(pref, q, a, ref))
+        persona, pref, *_ = plan[i + len(got) - 1]
+        return f"{persona.id}.{pref.id}: {verdicts[-1]}"
+
+    answers = _answers(domain, backend, asks, batch, ticker, first)
+    again = _answers(domain, backend, asks[::-1], batch, ticker, lambda i, got: "asked again")[::-1]
+    out = [Probe(persona.id, pref.id, q, a, v, a == b, ref)
+           for (persona, pref, _, q), a, b, v, ref in zip(plan, answers, again, verdicts, refs, strict=True)]
+    loc_answers = _answers(domain, backend, locs, batch, ticker, lambda i, got: "location probes")
+    leaked = sum(leaks(Env(domain, task.id, persona.id, 0), a) for (persona, task, _), a in zip(locs, loc_answers, strict=True))
     return out, summarize(out, leaked)
 
 
