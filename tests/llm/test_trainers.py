@@ -191,6 +191,8 @@ def test_stargate_prompts_are_the_planner_s(domain, backend):
     assert stargate_rows(domain, [tampered], Encoder(backend.tokenizer), 4096) == ([], 1)
     recs = [dict(record, persona=p, satisfaction_rate=r) for p, r in [("a", 0.1), ("b", 0.9), ("c", 0.5)]]
     assert [r["persona"] for r in top_fraction(recs, 1 / 3)] == ["b"]
+    ties = [dict(record, persona=p, satisfaction_rate=0.0, completed=c) for p, c in [("a", []), ("b", ["eggs"]), ("c", [])]]
+    assert [r["persona"] for r in top_fraction(ties, 1 / 3)] == ["b"]  # at equal rates, further along first
 
 
 def _adapt(*args, timeout=240):

@@ -4,8 +4,10 @@
     kept = top_fraction(records, 1 / 3)
     rows, skipped = stargate_rows(domain, kept, encoder, budget=2000)
 
-Selection: the records of one agent (error records left out), sorted by satisfaction rate, best first (ties
-by persona, task, seed), the first round(n * top) of them (at least one). Each kept record is replayed in
+Selection: the records of one agent (error records left out), sorted by satisfaction rate, best first (ties:
+more task components completed first, then by persona, task, seed: a weak student leaves most episodes at
+0%, and among those the ones that got further are the better examples), the first round(n * top) of them
+(at least one). Each kept record is replayed in
 the simulator (same scene, the offline user) to rebuild the view the student had at every step; a record
 whose replay does not reproduce its observations and replies (another spec version, or an LLM user) is
 left out and counted. Each step's prompt is rebuilt as the planner builds it (`LLMPolicy`): the planner
@@ -59,7 +61,8 @@ def read_rollouts(data, agent: str = "planner") -> list:
 
 def top_fraction(records: list, top: float) -> list:
     """The best `top` of the records by satisfaction rate (at least one)."""
-    order = sorted(records, key=lambda r: (-r["satisfaction_rate"], r["persona"], r["task"], r["seed"]))
+    order = sorted(records, key=lambda r: (-r["satisfaction_rate"], -len(r.get("completed") or ()), r["persona"],
+                                           r["task"], r["seed"]))
     return order[:max(1, round(len(order) * top))]
 
 
