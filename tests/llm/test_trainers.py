@@ -193,6 +193,11 @@ def test_stargate_prompts_are_the_planner_s(domain, backend):
     assert [r["persona"] for r in top_fraction(recs, 1 / 3)] == ["b"]
     ties = [dict(record, persona=p, satisfaction_rate=0.0, completed=c) for p, c in [("a", []), ("b", ["eggs"]), ("c", [])]]
     assert [r["persona"] for r in top_fraction(ties, 1 / 3)] == ["b"]  # at equal rates, further along first
+    from adaptbench.training.trainers.stargate import split_of
+
+    seen0 = [p for p in domain.persona if p not in domain.splits[0].unseen]
+    assert split_of(domain, [dict(record, persona=p) for p in seen0]) == domain.splits[0].id
+    assert split_of(domain, [dict(record, persona=p) for p in domain.persona]) is None  # every persona: no split
 
 
 def _adapt(*args, timeout=240):

@@ -57,15 +57,17 @@ def prepare(method: str, s, tokenizer, spec=None) -> Prepared:
     left: dict = {}
     if method == "star-gate":
         from ...compiler import load_domain
-        from .stargate import read_rollouts, stargate_rows, top_fraction
+        from .stargate import read_rollouts, split_of, stargate_rows, top_fraction
 
         records = read_rollouts(s.data, s.agent)
         kept = top_fraction(records, s.top)
+        domain = load_domain(spec)
         try:
-            encoded, bad = stargate_rows(load_domain(spec), kept, enc, s.max_length)
+            encoded, bad = stargate_rows(domain, kept, enc, s.max_length)
         except (KeyError, TypeError) as exc:  # a record without a rollout record's fields
             raise R.DataError(f"--data {s.data}: a rollout record is malformed ({type(exc).__name__}: {exc})") from None
-        left = {"rollouts": len(records), "rollouts_kept": len(kept), "rollouts_not_replayable": bad}
+        left = {"rollouts": len(records), "rollouts_kept": len(kept), "rollouts_not_replayable": bad,
+                "split": split_of(domain, records)}
     else:
         pairs = R.read_pairs(s.data)
         build = {"dpo": R.dpo_rows, "sft": R.sft_rows,

@@ -93,3 +93,13 @@ def stargate_rows(domain, records: list, enc: Encoder, max_length: int) -> tuple
             rows.append(step_row(builder, enc, (r["persona"], r["task"], r["seed"], 1, i), view, made_after,
                                  action, budget))
     return rows, unreplayable
+
+
+def split_of(domain, records: list) -> int | None:
+    """The cross-validation split the rollouts train for: the one split whose held-out personas none of
+    them plays (a split's training personas only), so that `adapt eval` puts the trained model's episodes
+    in that split's seen and unseen columns; None when no split, or more than one, fits."""
+    played = {r["persona"] for r in records}
+    fits = [sp.id for sp in domain.splits if not played & set(sp.unseen)]
+    return fits[0] if len(fits) == 1 else None
+
