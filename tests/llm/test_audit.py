@@ -19,6 +19,9 @@ def test_location_leaks(domain):
     assert leaks(env, "The milk is in the fridge.")
     assert leaks(env, "Try cabinet_2.")
     assert not leaks(env, "I don't know where it is; please search the house. I like whole milk.")
+    q = "Which cabinet has the mugs?"  # an echo names the question's furniture word and tells nothing
+    assert not leaks(env, f"The robot asks: {q}", q)
+    assert leaks(env, "The mugs are in cabinet_2.", q) and leaks(env, "Look in the fridge.", q)
 
 
 def test_users_check_llm_needs_a_model(capsys):
@@ -123,4 +126,4 @@ def test_an_answer_that_changes_when_asked_again_is_inconsistent(domain):
     calls = iter(range(10 ** 6))
     _, s = audit(domain, _Scripted(_tokenizer(domain), lambda q: f"whole milk {next(calls)}"), ["juan"],
                  progress=None)
-    assert not s["consistent"]
+    assert not s["consistent"] and s["inconsistent"] == s["probes"]

@@ -179,9 +179,10 @@ def users_check_llm(args) -> int:
     for p in probes:
         if args.verbose:
             print(f"{p.verdict.upper():<10} {p.persona}.{p.preference}: {p.question!r} -> {p.answer!r}")
+    consistent = "yes" if s["consistent"] else f"NO ({s['inconsistent']} changed when asked again)"
     print(f"LLM user: {s['hits']}/{s['probes']} probes answered with the preference ({s['hit_rate']:.1%}; "
           f"echoes {s['echo']}, non-answers {s['non-answer']}, other misses {s['miss']}); consistent answers: "
-          f"{'yes' if s['consistent'] else 'NO'}; location leaks: {s['location_leaks']}")
+          f"{consistent}; location leaks: {s['location_leaks']}")
     return 0 if s["hit_rate"] >= args.min_rate and s["location_leaks"] == 0 else 1
 
 

@@ -83,10 +83,11 @@ def names(pref, answer: str, question: str = "") -> bool:
     return verdict(pref, question, answer) == "hit"
 
 
-def leaks(env: Env, answer: str) -> bool:
+def leaks(env: Env, answer: str, question: str = "") -> bool:
     """Whether an answer tells where things are: an entity id of the scene other than a room's, or a
-    word of a furniture id (`fridge`, `cabinet`, `drawer`, ...)."""
-    toks = set(re.findall(r"[a-z][a-z0-9_]*", answer.lower()))
+    word of a furniture id (`fridge`, `cabinet`, `drawer`, ...), not counting the question's own words
+    (an echo of "Which cabinet has the mugs?" tells nothing)."""
+    toks = set(re.findall(r"[a-z][a-z0-9_]*", answer.lower())) - set(re.findall(r"[a-z][a-z0-9_]*", question.lower()))
     if toks & {e for e, s in env.world.specs.items() if s.kind != "room"}:  # "search the kitchen" tells nothing
         return True
     furniture = {w for e, s in env.world.specs.items() if s.kind == "furniture"
@@ -163,7 +164,8 @@ def audit(domain, backend, personas=None, max_probes: int | None = None, progres
     out = [Probe(persona.id, pref.id, q, a, v, a == b, ref)
            for (persona, pref, _, q), a, b, v, ref in zip(plan, answers, again, verdicts, refs, strict=True)]
     loc_answers = _answers(domain, backend, locs, batch, ticker, lambda i, got: "location probes")
-    leaked = sum(leaks(Env(domain, task.id, persona.id, 0), a) for (persona, task, _), a in zip(locs, loc_answers, strict=True))
+    leaked = sum(leaks(Env(domain, task.id, persona.id, 0), a, q)
+                 for (persona, task, q), a in zip(locs, loc_answers, strict=True))
     return out, summarize(out, leaked)
 
 
@@ -172,4 +174,5 @@ def summarize(out: list, leaked: int = 0) -> dict:
     hits = sum(p.hit for p in out)
     return {"probes": len(out), "hits": hits, "hit_rate": hits / len(out) if out else 0.0,
             **{v: sum(p.verdict == v for p in out) for v in VERDICTS if v != "hit"},
-            "consistent": all(p.consistent for p in out), "location_leaks": leaked}
+            "consistent": all(p.consistent for p in out), "inconsistent": sum(not p.consistent for p in out),
+            "location_leaks": leaked}
