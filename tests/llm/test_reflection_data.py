@@ -281,3 +281,17 @@ def test_train_data_bad_teacher_model_and_gpu_workers_are_one_line(tiny, tmp_pat
     gpu = subprocess.run(_cmd2(tiny, tmp_path / "d", "--workers", "2", "--device", "cuda"), capture_output=True,
                          text=True, timeout=120)
     assert gpu.returncode == 2 and "--workers above 1" in gpu.stderr and "Traceback" not in gpu.stderr
+
+
+def test_same_action_compares_the_whole_parsed_action(domain):
+    """Only the verb was compared: `Look for animal products` against the teacher's `Look for skillet` was
+    skipped as the same action (SmolLM2's data was all skips)."""
+    from adaptbench.runtime.index import runtime_index
+    from adaptbench.training.data import same_action
+
+    parser = runtime_index(domain).parser
+    assert not same_action(parser, "Look for animal products", "Look for skillet")
+    assert not same_action(parser, "Open fridge_0", "Open cabinet_0")
+    assert same_action(parser, "Open fridge_0", "Open fridge_0 ")
+    assert same_action(parser, "Look for skillet", "Look for skillet")
+

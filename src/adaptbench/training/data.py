@@ -95,6 +95,15 @@ def jobs(settings: DataSettings) -> list:
     return [(*u, i) for u in units(settings) for i in range(1, settings.interactions + 1)]
 
 
+def same_action(parser, student: str, teacher: str) -> bool:
+    """Whether student and teacher act the same: the same parsed action, verb and every slot (`Look for
+    animal products` and `Look for skillet` are both `look_for`, and differ), or the same text."""
+    if student.strip() == teacher.strip():
+        return True
+    ps, pt = parser.parse(student), parser.parse(teacher)
+    return ps is not None and pt is not None and (ps.action, ps.slots) == (pt.action, pt.slots)
+
+
 class Builder:
     """Builds the pairs of a selection with one student and one teacher."""
 
@@ -182,9 +191,7 @@ class Builder:
     def _skip(self, r: _Run, student: str, teacher: str) -> str | None:
         if r.failures >= 2:
             return "after_two_failures"
-        ps, pt = self.parser.parse(student), self.parser.parse(teacher)
-        same = ps is not None and pt is not None and ps.action == pt.action
-        return "same_action" if same or student.strip() == teacher.strip() else None
+        return "same_action" if same_action(self.parser, student, teacher) else None
 
     def _reflect(self, asks: list) -> list:
         t0 = time.perf_counter()
