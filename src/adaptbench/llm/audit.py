@@ -83,11 +83,16 @@ def names(pref, answer: str, question: str = "") -> bool:
     return verdict(pref, question, answer) == "hit"
 
 
+def _ids(text: str) -> set:
+    """The lower-case words and entity ids of a text."""
+    return set(re.findall(r"[a-z][a-z0-9_]*", text.lower()))
+
+
 def leaks(env: Env, answer: str, question: str = "") -> bool:
     """Whether an answer tells where things are: an entity id of the scene other than a room's, or a
     word of a furniture id (`fridge`, `cabinet`, `drawer`, ...), not counting the question's own words
     (an echo of "Which cabinet has the mugs?" tells nothing)."""
-    toks = set(re.findall(r"[a-z][a-z0-9_]*", answer.lower())) - set(re.findall(r"[a-z][a-z0-9_]*", question.lower()))
+    toks = _ids(answer) - _ids(question)
     if toks & {e for e, s in env.world.specs.items() if s.kind != "room"}:  # "search the kitchen" tells nothing
         return True
     furniture = {w for e, s in env.world.specs.items() if s.kind == "furniture"
@@ -100,12 +105,12 @@ def _plan(domain, personas, max_probes):
     ordered by persona and task: successive prompts then share everything but the question, which the
     transformers backend reads once (kept session caches are shared by prefix)."""
     out = []
+    order = {t.id: i for i, t in enumerate(domain.tasks)}
     for persona in (domain.persona[p] for p in (personas or list(domain.persona))):
         rows = []
         for pref in persona.preferences:
             tasks = [t for t in domain.tasks if applies_to(domain, pref, t)] or list(domain.tasks)
             rows += [(persona, pref, tasks[0], q) for q in probes(pref)[:max_probes]]
-        order = {t.id: i for i, t in enumerate(domain.tasks)}
         out += sorted(rows, key=lambda r: order[r[2].id])  # stable: preferences keep their order within a task
     return out
 
@@ -151,18 +156,16 @@ def audit(domain, backend, personas=None, max_probes: int | None = None, progres
     ticker = _Ticker(2 * len(plan) + len(locs), progress)
     asks = [(persona, task, q) for persona, _, task, q in plan]
     refs = [OfflineUser(domain, persona, task).answer(q) for persona, _, task, q in plan]
-    verdicts: list = []
 
-    def first(i, got):
-        for (_, pref, _, q), a, ref in zip(plan[i:i + len(got)], got, refs[i:i + len(got)], strict=True):
-            verdicts.append(verdict(pref, q, a, ref))
-        persona, pref, *_ = plan[i + len(got) - 1]
-        return f"{persona.id}.{pref.id}: {verdicts[-1]}"
+    def last(i, got):  # the progress line: the batch's last probe and its verdict
+        k = i + len(got) - 1
+        persona, pref, _, q = plan[k]
+        return f"{persona.id}.{pref.id}: {verdict(pref, q, got[-1], refs[k])}"
 
-    answers = _answers(domain, backend, asks, batch, ticker, first)
+    answers = _answers(domain, backend, asks, batch, ticker, last)
     again = _answers(domain, backend, asks[::-1], batch, ticker, lambda i, got: "asked again")[::-1]
-    out = [Probe(persona.id, pref.id, q, a, v, a == b, ref)
-           for (persona, pref, _, q), a, b, v, ref in zip(plan, answers, again, verdicts, refs, strict=True)]
+    out = [Probe(persona.id, pref.id, q, a, verdict(pref, q, a, ref), a == b, ref)
+           for (persona, pref, _, q), a, b, ref in zip(plan, answers, again, refs, strict=True)]
     loc_answers = _answers(domain, backend, locs, batch, ticker, lambda i, got: "location probes")
     leaked = sum(leaks(Env(domain, task.id, persona.id, 0), a, q)
                  for (persona, task, q), a in zip(locs, loc_answers, strict=True))

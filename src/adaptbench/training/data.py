@@ -101,7 +101,7 @@ def same_action(parser, student: str, teacher: str) -> bool:
     if student.strip() == teacher.strip():
         return True
     ps, pt = parser.parse(student), parser.parse(teacher)
-    return ps is not None and pt is not None and (ps.action, ps.slots) == (pt.action, pt.slots)
+    return ps is not None and ps == pt  # Parsed is frozen: its action and its slots
 
 
 class Builder:
