@@ -298,3 +298,20 @@ def test_sft_no_reflection_and_star_gate_train_and_merge(tiny, tmp_path):
             assert (r["rollouts"], r["rollouts_kept"], r["rows"]) == (2, 1, 3)
         else:
             assert r["rows"] >= summary["trainable"] and r["last"]["loss"] > 0
+
+
+def test_read_rollouts_takes_one_agent_or_several(tmp_path):
+    from adaptbench.training.trainers.rows import DataError
+    from adaptbench.training.trainers.stargate import read_rollouts
+
+    def rec(agent, **kw):
+        return json.dumps({"agent": agent, "persona": "juan", "task": "eggs", "seed": 0, "steps": [],
+                           "satisfaction_rate": 0.5, **kw})
+
+    f = tmp_path / "r.jsonl"
+    f.write_text("\n".join([rec("oracle"), rec("oracle-ask"), rec("planner"), rec("oracle", error="boom"),
+                            "not json"]) + "\n")
+    assert [r["agent"] for r in read_rollouts(f, "oracle")] == ["oracle"]
+    assert [r["agent"] for r in read_rollouts(f, "oracle, oracle-ask")] == ["oracle", "oracle-ask"]
+    with pytest.raises(DataError, match="no finished rollouts of agent 'react'"):
+        read_rollouts(f, "react")

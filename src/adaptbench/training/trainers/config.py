@@ -126,7 +126,8 @@ class StarGateSettings(TrainSettings):
     fraction of its rollouts by satisfaction rate, each step's prompt rebuilt as the planner renders it."""
 
     top: float = setting(1 / 3, "fraction of rollouts kept, best satisfaction rate first (default 1/3)", float)
-    agent: str = setting("planner", "the rollouts' agent whose records are read (default planner)", str)
+    agent: str = setting("planner", "the rollouts' agent whose records are read (default planner); several "
+                         "separated by commas (oracle,oracle-ask: a teacher's trajectories)", str)
 
     def check(self) -> None:
         """SettingsError on a value out of range."""

@@ -4,7 +4,7 @@
     kept = top_fraction(records, 1 / 3)
     rows, skipped = stargate_rows(domain, kept, encoder, budget=2000)
 
-Selection: the records of one agent (error records left out), sorted by satisfaction rate, best first (ties:
+Selection: the records of one agent, or of several named with commas (error records left out), sorted by satisfaction rate, best first (ties:
 more task components completed first, then by persona, task, seed: a weak student leaves most episodes at
 0%, and among those the ones that got further are the better examples), the first round(n * top) of them
 (at least one). Each kept record is replayed in
@@ -42,8 +42,9 @@ def _files(data) -> list:
 
 
 def read_rollouts(data, agent: str = "planner") -> list:
-    """The episode records of `agent` in a rollout results file or a directory of them (error records and
-    unreadable lines left out)."""
+    """The episode records of `agent` (one name, or several separated by commas: `oracle,oracle-ask`) in a
+    rollout results file or a directory of them (error records and unreadable lines left out)."""
+    agents = {a.strip() for a in agent.split(",") if a.strip()}
     out = []
     for f in _files(data):
         for line in f.read_text(encoding="utf-8").splitlines():
@@ -51,7 +52,7 @@ def read_rollouts(data, agent: str = "planner") -> list:
                 r = json.loads(line)
             except ValueError:
                 continue
-            if isinstance(r, dict) and r.get("agent") == agent and "steps" in r and "error" not in r \
+            if isinstance(r, dict) and r.get("agent") in agents and "steps" in r and "error" not in r \
                     and r.get("satisfaction_rate") is not None:
                 out.append(r)
     if not out:
