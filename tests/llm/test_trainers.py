@@ -315,3 +315,16 @@ def test_read_rollouts_takes_one_agent_or_several(tmp_path):
     assert [r["agent"] for r in read_rollouts(f, "oracle, oracle-ask")] == ["oracle", "oracle-ask"]
     with pytest.raises(DataError, match="no finished rollouts of agent 'react'"):
         read_rollouts(f, "react")
+
+
+def test_star_gate_on_a_teachers_trajectories_is_recorded_as_teacher_sft():
+    """SFT on scripted agents' rollouts is a warm start, not the STaR-GATE baseline: `adapt eval` must not
+    put it in STaR-GATE's row."""
+    from types import SimpleNamespace
+
+    from adaptbench.training.trainers import recorded_method
+
+    assert recorded_method("star-gate", SimpleNamespace(agent="oracle,oracle-ask")) == "teacher-sft"
+    assert recorded_method("star-gate", SimpleNamespace(agent="planner")) == "star-gate"
+    assert recorded_method("star-gate", SimpleNamespace(agent="oracle,planner")) == "star-gate"
+    assert recorded_method("dpo", SimpleNamespace(agent="oracle")) == "dpo"

@@ -127,7 +127,8 @@ class StarGateSettings(TrainSettings):
 
     top: float = setting(1 / 3, "fraction of rollouts kept, best satisfaction rate first (default 1/3)", float)
     agent: str = setting("planner", "the rollouts' agent whose records are read (default planner); several "
-                         "separated by commas (oracle,oracle-ask: a teacher's trajectories)", str)
+                         "separated by commas (oracle,oracle-ask: a teacher's trajectories, recorded as method teacher-sft, "
+                         "not star-gate)", str)
 
     def check(self) -> None:
         """SettingsError on a value out of range."""
