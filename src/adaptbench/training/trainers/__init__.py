@@ -50,7 +50,8 @@ def train(method: str, s, spec=None, log=None) -> dict:
         + (f", resuming from {resume}" if resume else "")
         + (f"; reference log-probs precomputed ({setup:.1f} s with loading)" if pre else ""))
     timing = engine.fit(trainer, resume, log)
-    result = {"method": recorded_method(method, s), **_counts(p), "steps": trainer.state.global_step, "precomputed_reference": pre,
+    result = {"method": recorded_method(method, s), **_counts(p), "steps": trainer.state.global_step,
+              "precomputed_reference": pre,
               "setup_seconds": round(setup, 2), "setup_cpu_seconds": round(setup_cpu, 2), **timing,
               **engine.summary_of(trainer)}
     trainer.save_model(str(out / "adapter"))  # every process (DeepSpeed/FSDP gather); the main one writes
@@ -66,11 +67,12 @@ def recorded_method(method: str, s) -> str:
     scripted agents' trajectories only (`--agent oracle,oracle-ask`: a warm start imitating a teacher, not
     the STaR-GATE baseline, which learns from the student's own rollouts); `method` otherwise."""
     from ...harness.registry import registry
+    from .stargate import agent_names
 
     if method != "star-gate":
         return method
     agents = registry()
-    named = [a.strip() for a in s.agent.split(",") if a.strip()]
+    named = agent_names(s.agent)
     scripted = all(a in agents and agents[a].resolved_kind() == "scripted" for a in named)
     return "teacher-sft" if named and scripted else method
 
@@ -81,4 +83,5 @@ def _counts(p) -> dict:
             "rows_with_generated_rejected_ids": sum(r.generated_rejected for r in p.rows)}
 
 
-__all__ = ["METHODS", "DPOSettings", "NoReflectionSettings", "SFTSettings", "StarGateSettings", "recorded_method", "train"]
+__all__ = ["METHODS", "DPOSettings", "NoReflectionSettings", "SFTSettings", "StarGateSettings", "recorded_method",
+           "train"]

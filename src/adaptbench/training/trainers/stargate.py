@@ -41,10 +41,15 @@ def _files(data) -> list:
     return [p]
 
 
+def agent_names(agent: str) -> list:
+    """The agents `--agent` names: one, or several separated by commas (`oracle,oracle-ask`)."""
+    return [a.strip() for a in agent.split(",") if a.strip()]
+
+
 def read_rollouts(data, agent: str = "planner") -> list:
     """The episode records of `agent` (one name, or several separated by commas: `oracle,oracle-ask`) in a
     rollout results file or a directory of them (error records and unreadable lines left out)."""
-    agents = {a.strip() for a in agent.split(",") if a.strip()}
+    agents = set(agent_names(agent))
     out = []
     for f in _files(data):
         for line in f.read_text(encoding="utf-8").splitlines():
