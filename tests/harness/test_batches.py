@@ -28,7 +28,7 @@ def test_scripted_agents_write_the_same_records_at_any_width_and_worker_count(tm
     assert runs[(1, 1)] == runs[(4, 1)] == runs[(3, 2)]
     recs = [json.loads(x) for x in runs[(1, 1)]]
     assert {r["agent_config"]["agent"] for r in recs} == {"oracle", "never-ask", "always-ask"}
-    assert all(r["agent_config"] == {"agent": r["agent"], "user": "offline"} for r in recs)
+    assert all(r["agent_config"] == {"agent": r["agent"], "user": "offline", "max_steps": 50} for r in recs)
     assert all(r["satisfaction_rate"] == 1.0 for r in recs if r["agent"] == "oracle")
 
 

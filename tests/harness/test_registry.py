@@ -61,7 +61,7 @@ def test_a_third_party_agent_from_the_entry_point_group_is_listed_and_runs(tmp_p
     recs = {(x["agent"], x["persona"]): x for x in map(json.loads, (tmp_path / "r.jsonl").read_text().splitlines())}
     mine = [x for (agent, _), x in recs.items() if agent == "look-then-done"]
     assert len(mine) == 2 and all([s["action"] for s in x["steps"]] == ["Look for eggs", "Declare Done"] for x in mine)
-    assert all(x["agent_config"] == {"agent": "look-then-done", "user": "offline"} for x in mine)
+    assert all(x["agent_config"] == {"agent": "look-then-done", "user": "offline", "max_steps": 50} for x in mine)
     assert _adapt(["rollout", "--spec", str(SMALL), "--agent", "look-then-done", "--seeds", "0", "--out", "r.jsonl",
                    "--quiet"], site, tmp_path).stdout.startswith("0 episode(s) run, 2 already")  # resumes
 

@@ -80,27 +80,116 @@ def test_delta_batched_equals_direct_forward(backend, domain):
 
 
 @SKIP_MODELS
-def test_long_prompt_is_cut_from_the_left_and_reported(backend, domain):
+def test_long_prompt_loses_old_observations_first_never_a_question_or_its_answer(backend, domain):
     from adaptbench.llm.chat import count, render
     from adaptbench.training.relabel import student_policy
-    from adaptbench.training.rows import fit_row
+    from adaptbench.training.rows import ELIDED, fit_prompt
 
     student = student_policy(backend, domain, budget=None)
-    ep, _ = play(domain, steps=("Look for eggs", "Open fridge_0", "Look for butter", "Look for pan",
-                                "Look for milk", "Look for salt"))
+    ep, _ = play(domain, steps=("Look for eggs", 'Ask "How do you like your eggs?"', "Open fridge_0", "Look for butter",
+                                "Look for pan", "Look for milk", "Look for salt"))
     student.start(ep.id, ep.env)
     prompt = student.act_batch([ep.view()])[0].prompt
-    full = count(backend.tokenizer, render(backend.tokenizer, prompt))
-    cut, n, truncated = fit_row(backend.tokenizer, prompt, 10, full - 20)
-    assert truncated and n <= full - 30 and cut.omitted > prompt.omitted
-    assert cut.messages[0] == prompt.messages[0] and cut.messages[-1] == prompt.messages[-1]  # kept, cut on the left
-    same, m, t2 = fit_row(backend.tokenizer, prompt, 10, full + 10)
-    assert not t2 and m == full and same.messages == prompt.messages
+    tok = backend.tokenizer
+    full = count(tok, render(tok, prompt))
+    question = next(m for m in prompt.messages if m["content"] == 'Action: Ask "How do you like your eggs?"')
+    answer = prompt.messages[prompt.messages.index(question) + 1]
+    assert "scrambled" in answer["content"].lower()
+    fitted = fit_prompt(tok, prompt, 10, full - 20)
+    assert fitted.truncated and fitted.tokens <= full - 30 and fitted.qa_kept == fitted.qa_total == 1
+    assert fitted.tokens == count(tok, render(tok, fitted.prompt))
+    assert question in fitted.prompt.messages and answer in fitted.prompt.messages  # the answer kept whole
+    assert fitted.prompt.messages[:2] == prompt.messages[:2] and fitted.prompt.messages[-1] == prompt.messages[-1]
+    assert any(m["content"] == ELIDED for m in fitted.prompt.messages)  # observations go first
+    tight = fit_prompt(tok, prompt, 10, 50)  # nothing but the task, questions and answers: still too long
+    assert tight.over > 0 and tight.qa_kept == 1 and question in tight.prompt.messages
+    same = fit_prompt(tok, prompt, 10, full + 10)
+    assert not same.truncated and same.tokens == full and same.prompt.messages == prompt.messages
+
+
+@SKIP_MODELS
+def test_a_long_episodes_rows_keep_every_answer_and_are_scored_on_their_own_prompt(backend, domain, tmp_path):
+    from adaptbench.llm.chat import count, render
+    from adaptbench.llm.prompts import Prompt
+    from adaptbench.training.data import Builder, DataSettings, opening_tokens
+    from adaptbench.training.relabel import student_policy
+    from adaptbench.training.score import step_probabilities
+
+    base = DataSettings(1, ("juan",), ("eggs",), (100,), questions="topics", max_length=None, width=1, max_steps=10)
+    opening = opening_tokens(domain, student_policy(backend, domain), base)
+    from dataclasses import replace
+
+    settings = replace(base, max_length=opening + 320)  # room for the question, its answer and a long action, not for the rest
+    store = PairStore(tmp_path)
+    Builder(domain, _asking_student(backend, domain), settings, store, "tiny").run()
+    rows = store.rows
+    assert len(rows) == 10 and any(r["truncated"] for r in rows)
+    tok = backend.tokenizer
+    for r in rows[1:]:
+        assert r["qa_total"] == r["qa_kept"] == 1
+        assert any(m["content"] == 'Action: Ask "How do you like your eggs?"' for m in r["prompt"])
+        x = render(tok, Prompt(tuple(r["prompt"]), "Action: "))
+        assert r["prompt_tokens"] == count(tok, x)
+        if r["p_teacher"] is not None:  # scored on exactly the prompt it trains on
+            again = step_probabilities(backend, x, x, r["teacher_action"], r["student_action"])
+            assert again.p_teacher == pytest.approx(r["p_teacher"], abs=1e-6)
+    assert summarise(rows)["rows_lost_qa"] == 0 and summarise(rows)["scene_seeds"] == [100]
+
+
+@SKIP_MODELS
+def test_no_skip_after_failures_unless_asked(backend, domain, tmp_path):
+    from dataclasses import replace
+
+    from adaptbench.training.data import Builder, DataSettings
+    from adaptbench.training.relabel import student_policy
+
+    student = student_policy(backend, domain)
+    own = student.act_batch
+    student.act_batch = lambda views: [replace(d, action="Open unicorn_0") for d in own(views)]  # fails every step
+    settings = DataSettings(1, ("juan",), ("eggs",), (100,), questions="topics", max_length=None, width=1, max_steps=5)
+    store = PairStore(tmp_path / "off")
+    Builder(domain, student, settings, store, "tiny").run()
+    assert len(store.rows) == 5 and not any((r["skip_reason"] or "").startswith("after_") for r in store.rows)
+    on = PairStore(tmp_path / "on")
+    Builder(domain, student, replace(settings, skip_after_failures=2), on, "tiny").run()
+    assert [r["skip_reason"] for r in on.rows][2:] == ["after_2_failures"] * 3
+
+
+@SKIP_MODELS
+@pytest.mark.parametrize(("extra", "says"), [
+    (("--seeds", "2-5"), "--seeds 2-3 meets the evaluation scene seeds 0-3"),
+    (("--max-length", "300"), "cannot hold a row's opening prompt"),
+])
+def test_train_data_refuses_evaluation_seeds_and_a_length_that_cannot_hold_the_task(tiny, tmp_path, extra, says):
+    cmd = [sys.executable, "-m", "adaptbench.cli", "train", "data", "--student", str(tiny), "--out",
+           str(tmp_path / "d"), "--personas", "ron", "--tasks", "eggs", "--split", "1", *extra]
+    done = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+    said = [x for x in done.stderr.splitlines() if x.startswith("adapt:")]
+    assert done.returncode == 2 and len(said) == 1 and says in said[0], done.stderr
+    assert "Traceback" not in done.stderr and not (tmp_path / "d" / "pairs.jsonl").exists()
+
+
+def test_training_commands_default_to_seeds_apart_from_evaluation():
+    from adaptbench.cli.main import build_parser
+    from adaptbench.harness.rollout import parse_seeds
+    from adaptbench.harness.seeds import EVAL_SEEDS
+    from adaptbench.training.data import DataSettings
+    from adaptbench.training.student import StudentSettings
+
+    parser = build_parser()
+    data = parser.parse_args(["train", "data", "--student", "x", "--out", "y"])
+    grpo = parser.parse_args(["train", "grpo", "--model", "x", "--out", "y"])
+    seeds = {"train data": parse_seeds(data.seeds), "grpo": list(grpo.seeds),
+             "DataSettings": list(DataSettings(None, (), ()).seeds),
+             "student": [*StudentSettings().ask_seeds, *StudentSettings().oracle_seeds]}
+    for name, used in seeds.items():
+        assert used and not set(used) & set(EVAL_SEEDS), name
+    assert set(grpo.eval_seeds) <= set(EVAL_SEEDS)
 
 
 def _cmd(tiny, out):
     return [sys.executable, "-m", "adaptbench.cli", "train", "data", "--student", str(tiny), "--out", str(out),
-            "--personas", "sarah,ron", "--tasks", "eggs", "--split", "1", "--batch", "1", "--max-length", "600"]
+            "--personas", "sarah,ron", "--tasks", "eggs", "--split", "1", "--batch", "1", "--max-steps", "12"]
 
 
 @SKIP_MODELS
@@ -127,9 +216,10 @@ def test_resume_after_kill_and_provenance(tiny, tmp_path):
         assert r["rejected"][0]["role"] == "assistant" and r["prompt"][0]["role"] == "system"
     summary = json.loads((out / "summary.json").read_text())
     assert summary["pairs"] == len(rows) and "steps:" in done.stdout
-    # the tiny model's shortest prompt exceeds --max-length 600: every row kept, flagged and counted
-    assert all(r["over_budget"] is True for r in rows) and summary["over_budget"] == len(rows)
-    assert f"{len(rows)} still over --max-length" in done.stdout
+    # the default --max-length holds every prompt whole; the default seeds are training scenes
+    assert not any(r["truncated"] or r["over_budget"] for r in rows) and summary["rows_lost_qa"] == 0
+    assert summary["scene_seeds"] == [100] and summary["max_steps"] == 12 and {r["seed"] for r in rows} == {100}
+    assert "0 lost a question or answer" in done.stdout
     _check_rejected_ids(tiny, rows, summary)
 
 
@@ -243,7 +333,7 @@ def test_llm_teacher_sees_the_preferences_and_the_unmet_ones_and_acts_under_the_
 def _cmd2(tiny, out, *extra):
     return [sys.executable, "-m", "adaptbench.cli", "train", "data", "--student", str(tiny), "--out", str(out),
             "--personas", "sarah,ron,lisa,maya", "--tasks", "eggs", "--split", "1", "--batch", "1",
-            "--max-length", "600", "--max-steps", "3", "--interactions", "2", "--questions", "topics", *extra]
+            "--max-steps", "3", "--interactions", "2", "--questions", "topics", *extra]
 
 
 @SKIP_MODELS

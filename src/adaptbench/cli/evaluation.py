@@ -64,6 +64,45 @@ def resolve(runs, mapped: dict, unseen) -> list:
     return records
 
 
+def seed_notes(runs, resolved: list) -> list:
+    """Warnings for episodes run on a scene seed their model was trained on (`harness.seeds`); `resolved`:
+    the records relabelled with their methods, parallel to `runs.records`."""
+    from ..harness.methods import MethodError, trained_seeds
+    from ..harness.seeds import seen_seeds_lines
+
+    trained: dict = {}
+    for r, src in zip(runs.records, runs.sources, strict=True):
+        model = (r.agent_config or {}).get("model")
+        if isinstance(model, str) and model not in trained:
+            try:
+                trained[model] = trained_seeds(model, (str(Path(src).parent),) if src else ())
+            except MethodError:
+                trained[model] = ()
+    return seen_seeds_lines(resolved, trained)
+
+
+def with_ceiling(args, records: list) -> tuple:
+    """(records, notes): with the oracle's ceiling row at the records' budget added when they have no
+    teacher row (not for --by breakdowns, nor with --no-ceiling)."""
+    from ..harness.ceiling import ceiling, needs_ceiling
+
+    if args.by or args.no_ceiling or not needs_ceiling(records):
+        return records, []
+    from ..compiler import load_domain
+
+    added, line = ceiling(records, load_domain(args.spec))
+    return [*records, *added], [line]
+
+
+def one_budget(args, records: list) -> None:
+    """Exit 2 when the records ran at different step budgets, unless --allow-mixed."""
+    from ..harness.evaluate import mixed_budgets
+
+    line = mixed_budgets(records)
+    if line and not args.allow_mixed:
+        _fail(line, 2)
+
+
 def tables(args, records: list, unseen) -> tuple:
     """(rows, text, csv thunk, markdown thunk, notes) of the paper layout."""
     from ..harness import papertables as pt

@@ -8,7 +8,9 @@ from pathlib import Path
 
 
 def add_rollout_options(p) -> None:
-    """The model options of `adapt rollout` (used by the LLM agents only)."""
+    """The model options of `adapt rollout` (used by the LLM agents only) and the step budget (every agent)."""
+    from .argtypes import positive
+
     g = p.add_argument_group("language-model agents (planner, teacher, react, never-ask-llm, always-ask-llm)")
     g.add_argument("--model", help="model directory (save_pretrained), `student` (the tiny student shipped in the "
                    "package, docs/training.md), or the served model's name with --backend openai")
@@ -23,7 +25,9 @@ def add_rollout_options(p) -> None:
                    help="default: the checkpoint's (auto); on a CPU, bfloat16 for a real-sized model where the CPU "
                    "has bfloat16 instructions (llm/cpu.py, measured in docs/smollm2.md)")
     g.add_argument("--batch", type=int, help="episodes advanced together (default 16)")
-    g.add_argument("--max-steps", type=int, help="step budget per episode (default 50; always-ask 50 x (1 + 1/N))")
+    g.add_argument("--max-steps", type=positive, default=50, help="step budget per episode, for every agent, "
+                   "scripted ones included (default 50, the paper's; always-ask gets 1 + 1/N times as many steps "
+                   "for its questions); recorded with each episode, and `adapt eval` compares one budget at a time")
     g.add_argument("--budget", type=int, help="prompt token budget (oldest steps dropped first; default: the "
                    "model's context less the generation limits)")
     add_sampling_options(g)
@@ -101,13 +105,13 @@ def _default_batch(args) -> None:
 
 
 def rollout_options(args, agents: list) -> dict:
-    """The options of `harness.rollout.rollout` for these agents: with any language-model agent, the
-    backend (built here from --model) and the user, batch width, step budget and prompt budget; for
-    scripted agents alone, none (one episode at a time per worker, the offline user)."""
+    """The options of `harness.rollout.rollout` for these agents: the step budget (every agent); with any
+    language-model agent, also the backend (built here from --model) and the user, batch width and prompt
+    budget; for scripted agents alone, the budget only (one episode at a time per worker, the offline user)."""
     from ..harness.registry import spec
 
     if not any(spec(a).resolved_kind() == "model" for a in agents):
-        return {}
+        return {"steps": args.max_steps}
     from ..llm.user import LLMUser, user_config
     from ..runtime.users import OfflineUser
 
@@ -247,6 +251,12 @@ def _cmd_model_student(args) -> int:
         _fail(str(exc))
     if args.steps < 1 or args.workers < 1:
         _fail("--steps and --workers must be at least 1")
+    from ..harness.seeds import overlap_message
+
+    for flag, seeds in (("--ask-seeds", s.ask_seeds), ("--oracle-seeds", s.oracle_seeds)):
+        line = overlap_message(flag, seeds)
+        if line and not args.allow_eval_seeds:
+            _fail(line)
     try:
         info = build_student(domain, args.out, s, log=lambda m: print(m, file=sys.stderr), progress=not args.quiet)
     except ImportError as exc:
@@ -275,6 +285,8 @@ def _add_student_command(msub) -> None:
                    help=f"scene seeds of the oracle-ask episodes (default {_seeds_text(d.ask_seeds)})")
     q.add_argument("--oracle-seeds", default=_seeds_text(d.oracle_seeds),
                    help=f"scene seeds of the oracle episodes (default {_seeds_text(d.oracle_seeds)})")
+    q.add_argument("--allow-eval-seeds", action="store_true",
+                   help="train on the evaluation scene seeds 0-3 anyway (refused by default: `adapt eval` flags them)")
     q.add_argument("--tasks", default="all", help="'all' (default) or comma-separated task ids")
     q.add_argument("--hidden", type=int, default=d.hidden, help=f"default {d.hidden}")
     q.add_argument("--layers", type=int, default=d.layers, help=f"default {d.layers}")

@@ -149,13 +149,16 @@ def _cmd_eval(args) -> int:
 
     mapped = evaluation.mapping(args)
     runs = _load_runs(args, evaluation.run_files(args, mapped))
-    records = by_temperature(evaluation.resolve(runs, mapped, _splits(args)))  # seeds averaged, temperatures apart
+    resolved = evaluation.resolve(runs, mapped, _splits(args))
+    records = by_temperature(resolved)  # seeds averaged, temperatures apart
+    evaluation.one_budget(args, records)
+    records, ceiling_note = evaluation.with_ceiling(args, records)
     rows, text, csv_text, md_text, lines = _tables(args, records)
     print(text)
     none = sum(1 for r in records if r.satisfaction_rate is None)
     if none and not args.by:
         print(f"{none} episode(s) had no applicable preference and are left out of the satisfaction rates")
-    for line in [*lines, *sampling_notes(records)]:
+    for line in [*lines, *sampling_notes(records), *evaluation.seed_notes(runs, resolved), *ceiling_note]:
         print(line)
     if args.plot:
         _plot(args.plot, rows if not args.by else _agent_rows(args, records), records)
@@ -275,7 +278,10 @@ def add_commands(sub) -> None:
     p.add_argument("--by", choices=["task", "persona", "preference"],
                    help="break the results down per task, persona or preference instead of the seen/unseen table")
     p.add_argument("--allow-mixed", action="store_true",
-                   help="evaluate results of different spec versions together (refused by default)")
+                   help="evaluate results of different spec versions or step budgets together (refused by default: "
+                        "a table compares methods at one --max-steps; each row shows its budget)")
+    p.add_argument("--no-ceiling", action="store_true",
+                   help="without oracle records, do not compute the oracle's ceiling row at the records' budget")
     from .evaluation import add_options
 
     add_options(p)

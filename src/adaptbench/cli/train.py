@@ -20,6 +20,7 @@ def _fail(msg: str, code: int = 2):
 
 
 def _selection(args, domain) -> tuple:
+    from ..harness.seeds import overlap_message
     from .runs import _names, _seeds
 
     split = None
@@ -32,7 +33,11 @@ def _selection(args, domain) -> tuple:
         personas = [p for p in personas if p not in unseen[args.split]]
     if args.personas != "all":
         personas = _names(args.personas, {p: None for p in personas}, "training persona")
-    return split, tuple(personas), tuple(_names(args.tasks, domain.task, "task")), tuple(_seeds(args.seeds))
+    seeds = tuple(_seeds(args.seeds))
+    line = overlap_message("--seeds", seeds)
+    if line and not args.allow_eval_seeds:
+        _fail(line)
+    return split, tuple(personas), tuple(_names(args.tasks, domain.task, "task")), seeds
 
 
 def _model_dir(path: str, flag: str) -> None:
@@ -83,7 +88,7 @@ def _cmd_data(args) -> int:
     from ..compiler import load_domain
     from ..harness.workers import Interrupted, WorkerDied
     from ..llm.hf import TransformersBackend
-    from ..training.data import Builder, DataSettings, build
+    from ..training.data import MAX_LENGTH, Builder, DataSettings, TooLong, build, opening_tokens
     from ..training.dataset import PairStore, mix_line
     from ..training.relabel import student_policy
 
@@ -93,7 +98,13 @@ def _cmd_data(args) -> int:
                                   temperature=args.temperature, seed=args.sample_seed)
     teacher = _teacher(args, domain, backend)
     settings = DataSettings(split, personas, tasks, seeds, args.interactions, args.questions, args.eps1, args.eps2,
-                            args.max_length, args.batch, _workers(args.workers), args.max_steps)
+                            args.max_length, args.batch, _workers(args.workers), args.max_steps,
+                            args.skip_after_failures)
+    need = opening_tokens(domain, student_policy(backend, domain), settings)
+    if need > args.max_length:
+        _fail(f"--max-length {args.max_length} cannot hold a row's opening prompt (instructions, layout, task) and "
+              f"its completion ({need} tokens): raise --max-length to at least {need}, more to keep questions and "
+              f"answers (default {MAX_LENGTH})")
     store = PairStore(args.out)
 
     def make_builder(sink):
@@ -111,12 +122,18 @@ def _cmd_data(args) -> int:
     except WorkerDied as exc:
         print(f"\nadapt: {exc}; {len(store.rows)} steps are in {store.path}; {resume}", file=sys.stderr)
         return 1
+    except TooLong as exc:
+        print(f"\nadapt: {exc}; the {len(store.rows)} steps written are kept in {store.path}", file=sys.stderr)
+        return 2
     print(file=sys.stderr)
     summary = store.finish()
     summary["seconds"] = {k: round(v, 2) for k, v in times.seconds.items()}
     summary["teacher"] = teacher.name
     summary["teacher_model"] = teacher.model
     summary["interactions"] = args.interactions
+    summary["max_steps"] = settings.max_steps
+    summary["max_length"] = settings.max_length
+    summary["skip_after_failures"] = settings.skip_after_failures
     (store.out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     print(mix_line(summary))
     print("time: " + ", ".join(f"{k} {v:.1f}s" for k, v in summary["seconds"].items()))
@@ -125,6 +142,8 @@ def _cmd_data(args) -> int:
 
 def add_data(train_sub) -> None:
     """Add `data` to the `train` group."""
+    from ..harness.seeds import EVAL_SEEDS, TRAIN_SEEDS, seeds_text
+
     p = train_sub.add_parser("data", help="build Reflection-DPO's preference pairs",
                              description="Roll out the student over the split's training personas; at each step "
                                          "the teacher (the scripted oracle, or an LLM with --teacher-model) "
@@ -137,7 +156,11 @@ def add_data(train_sub) -> None:
     p.add_argument("--out", required=True, help="output directory")
     p.add_argument("--personas", default="all", help="'all' or comma-separated training persona ids")
     p.add_argument("--tasks", default="all", help="'all' or comma-separated task ids")
-    p.add_argument("--seeds", default="0", help="scene seeds: 0-3 or 0,2,5 (default 0)")
+    p.add_argument("--seeds", default=TRAIN_SEEDS, help=f"scene seeds: 100-103 or 100,102 (default {TRAIN_SEEDS}); "
+                   f"the evaluation seeds {seeds_text(EVAL_SEEDS)} are refused, so the student is never evaluated "
+                   "on a scene it trained on")
+    p.add_argument("--allow-eval-seeds", action="store_true",
+                   help=f"train on the evaluation seeds {seeds_text(EVAL_SEEDS)} anyway (`adapt eval` then flags them)")
     p.add_argument("--interactions", type=int, default=1, choices=[1, 2], help="interactions per persona, task "
                    "and seed (2: the paper's data, the second with a summary of what the user answered in the "
                    "first as the student's prior knowledge)")
@@ -148,11 +171,18 @@ def add_data(train_sub) -> None:
                    "(default: the scripted oracle)")
     p.add_argument("--eps1", type=float, default=0.2, help="ε1: Δq above which the question is chosen (0.2)")
     p.add_argument("--eps2", type=float, default=0.5, help="ε2: Δt below which a^t is chosen (0.5)")
-    p.add_argument("--max-length", type=positive, default=1024, help="tokens of prompt plus completion per row")
+    p.add_argument("--max-length", type=positive, default=8192,
+                   help="tokens of prompt plus completion per row (default 8192: the shipped students' prompts at "
+                        "50 steps fit whole); a longer prompt loses its oldest observations first, never a "
+                        "question, an answer or the task, and is scored on exactly what it keeps")
     p.add_argument("--batch", type=positive, default=8, help="episodes stepped together (default 8)")
     p.add_argument("--workers", type=positive, default=1, help="worker processes, each with a copy of the "
                    "models and --batch episodes in flight (default 1; at most the CPU cores)")
-    p.add_argument("--max-steps", type=positive, help="step budget per episode (default 50, as in adapt rollout)")
+    p.add_argument("--max-steps", type=positive, default=50,
+                   help="step budget per episode (default 50, the paper's, as in adapt rollout)")
+    p.add_argument("--skip-after-failures", type=positive, metavar="N",
+                   help="skip (no pair) the steps after N failed actions in a row: this project's option, not the "
+                        "paper's (off by default: the looping states a correction should come from get pairs)")
     p.add_argument("--device", default="cpu")
     from .model import add_sampling_options
 

@@ -91,8 +91,9 @@ def add_grpo(train_sub) -> None:
     p.add_argument("--max-tool-calls", type=positive, default=8, help="tool-calling rounds per rollout (default 8)")
     p.add_argument("--episode-steps", type=positive, default=30, help="simulator step limit (default 30)")
     p.add_argument("--holdout", type=int, default=4, help="personas held out for the before/after reward (default 4)")
-    p.add_argument("--seeds", type=_seeds, default=(0,), help="training scene seeds (default 0)")
-    p.add_argument("--eval-seeds", type=_seeds, default=(100,), help="held-out scene seeds (default 100)")
+    p.add_argument("--seeds", type=_seeds, default=(100,),
+                   help="training scene seeds (default 100: apart from the evaluation seeds 0-3)")
+    p.add_argument("--eval-seeds", type=_seeds, default=(0,), help="held-out scene seeds (default 0)")
     p.add_argument("--eval-episodes", type=positive, default=8, help="held-out episodes measured (default 8)")
     p.add_argument("--task", action="append", help="train on this task only (repeatable; default all)")
     p.add_argument("--lr", type=float, default=5e-4, help="learning rate (default 5e-4)")

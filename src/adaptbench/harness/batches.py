@@ -29,10 +29,12 @@ from ..harness.workers import run_stream_pool
 from ..runtime.env import MAX_STEPS, Env
 
 
-def max_steps(policy) -> int:
-    """The step budget: always-ask gets 1 + 1/N more steps (N: its question interval)."""
+def max_steps(policy, budget: int = MAX_STEPS) -> int:
+    """The steps an episode of `policy` may take under the table's step budget `budget`: the budget
+    itself, except that always-ask gets 1 + 1/N more steps (N: its question interval), so that its
+    questions do not eat the steps of the task."""
     every = policy.config().get("every")
-    return int(MAX_STEPS * (1 + 1 / every)) if every else MAX_STEPS
+    return int(budget * (1 + 1 / every)) if every else budget
 
 
 def episode_id(job) -> str:
@@ -67,8 +69,8 @@ def run_batched(jobs, domain, policy, make_user, batch: int = 16, config: dict |
                 steps: int | None = None):
     """Run the jobs, `batch` at a time; yields each finished episode's record. `make_user(domain,
     persona, task)` returns the episode's user (with `.bind(env)` if it reads the state); `config` is
-    the agent configuration recorded (by default `policy.config()` with the first user's); `steps`
-    overrides the step budget (`max_steps(policy)`). With several agents, `policy` is a dict agent name ->
+    the agent configuration recorded (by default `policy.config()` with the first user's); `steps` is
+    the step budget (default 50; `max_steps(policy, steps)` per episode). With several agents, `policy` is a dict agent name ->
     Policy (and `config`, if given, a dict agent name -> configuration)."""
     pending: dict = {}  # episode id -> (job, user)
     policies, configs = _by_agent(policy, config)
@@ -78,7 +80,7 @@ def run_batched(jobs, domain, policy, make_user, batch: int = 16, config: dict |
         for job in jobs:
             persona, task = domain.persona[job.persona], domain.task[job.task]
             user = make_user(domain, persona, task)
-            env = Env(domain, job.task, job.persona, job.seed, user=user, max_steps=steps or max_steps(policies[job.agent]))
+            env = Env(domain, job.task, job.persona, job.seed, user=user, max_steps=max_steps(policies[job.agent], steps or MAX_STEPS))
             if hasattr(user, "bind"):
                 user.bind(env)
             pending[episode_id(job)] = (job, user)
@@ -87,7 +89,7 @@ def run_batched(jobs, domain, policy, make_user, batch: int = 16, config: dict |
     for ep in iter_batch(router, episodes(), batch, catch=True):
         job, user = pending.pop(ep.id)
         if configs[job.agent] is None:
-            configs[job.agent] = {**policies[job.agent].config(), **_user_config(user)}
+            configs[job.agent] = {**policies[job.agent].config(), **_user_config(user), "max_steps": steps or MAX_STEPS}
         yield safe_record(ep, job, configs[job.agent], domain.spec_hash, _notes(policies[job.agent], job))
 
 
@@ -112,7 +114,8 @@ def _user_config(user) -> dict:
 def rollout_policy(jobs, out: Path, domain, policy, make_user, batch: int = 16, progress: bool = True,
                    user_config: dict | None = None, steps: int | None = None, workers: int = 1) -> RolloutResult:
     """Run the jobs not yet in `out` (same agent configuration and spec), appending each record. The
-    recorded configuration is `policy.config()` with the user's (`user_config`) and any step budget.
+    recorded configuration is `policy.config()` with the user's (`user_config`) and the step budget
+    (`steps`, default 50: every record carries it, scripted agents' included).
     With `workers` > 1, that many forked processes (each with the parent's model, copy-on-write) run
     batched rollouts on jobs pulled from one queue and this process writes their records: data
     parallelism for models on the CPU. `policy` may be a dict agent name -> Policy (several agents, one
@@ -135,9 +138,9 @@ def rollout_policy(jobs, out: Path, domain, policy, make_user, batch: int = 16, 
 
 
 def _configs(policy, user_config: dict | None, steps: int | None):
-    """Agent name -> the configuration recorded: the policy's, the user's, any step budget."""
+    """Agent name -> the configuration recorded: the policy's, the user's and the step budget."""
     def of(p) -> dict:
-        return {**p.config(), **(user_config or {"user": "offline"}), **({"max_steps": steps} if steps else {})}
+        return {**p.config(), **(user_config or {"user": "offline"}), "max_steps": steps or MAX_STEPS}
 
     if isinstance(policy, dict):
         return {agent: of(p) for agent, p in policy.items()}

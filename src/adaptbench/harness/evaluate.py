@@ -69,7 +69,8 @@ def _row(method: str, mine: list, unseen: dict, ks: tuple) -> dict:
             if r.satisfaction_rate is not None:
                 cols[col][0].append(r.satisfaction_rate)
             cols[col][1].append(r.questions)
-    return {"agent": method, "episodes": len(mine), "pass_k": pass_k(mine, ks), "precision": precision(mine),
+    return {"agent": method, "episodes": len(mine), "budget": tuple(sorted({r.budget for r in mine})),
+            "pass_k": pass_k(mine, ks), "precision": precision(mine),
             "canonical": canonical_counts(mine),
             "rate_seen": mean_se(cols["seen"][0]), "rate_unseen": mean_se(cols["unseen"][0]),
             "questions_seen": mean_se(cols["seen"][1]), "questions_unseen": mean_se(cols["unseen"][1]),
@@ -92,7 +93,7 @@ def _num(ms) -> str:
     return "n/a" if ms[0] is None else f"{ms[0]:.1f} ± {ms[1]:.1f}"
 
 
-HEADER = ["Method", "Episodes", "Satisfaction (seen)", "Satisfaction (unseen)", "Questions (seen)",
+HEADER = ["Method", "Episodes", "Steps", "Satisfaction (seen)", "Satisfaction (unseen)", "Questions (seen)",
           "Questions (unseen)"]
 METRICS_HEADER = ["Question precision"]
 
@@ -116,9 +117,31 @@ def _precision(pr) -> str:
     return "n/a" if pr.rate is None else f"{pr.rate * 100:.1f}% ({pr.precise}/{pr.judged})"
 
 
+def _budget(row: dict) -> str:
+    return "/".join(map(str, row.get("budget") or ())) or "n/a"
+
+
+def budgets(records: list) -> dict:
+    """Step budget -> the methods (record agents) with records at that budget."""
+    out: dict = {}
+    for r in records:
+        out.setdefault(r.budget, set()).add(r.agent)
+    return out
+
+
+def mixed_budgets(records: list) -> str | None:
+    """None when every record ran at one step budget; else one line naming each budget's methods."""
+    by = budgets(records)
+    if len(by) <= 1:
+        return None
+    parts = "; ".join(f"{b} steps: {', '.join(sorted(m))}" for b, m in sorted(by.items()))
+    return (f"these results ran at different step budgets ({parts}): a table compares one budget (re-run the "
+            f"rows with the same --max-steps, e.g. `adapt rollout ... --max-steps {max(by)}`) or pass --allow-mixed")
+
+
 def cells(row: dict) -> list:
     """The printable cells of a row."""
-    return ([row["agent"], str(row["episodes"]), _pct(row["rate_seen"]), _pct(row["rate_unseen"]),
+    return ([row["agent"], str(row["episodes"]), _budget(row), _pct(row["rate_seen"]), _pct(row["rate_unseen"]),
              _num(row["questions_seen"]), _num(row["questions_unseen"])]
             + [_pass(row["pass_k"], k) for k in row["pass_k"].ks] + [_precision(row["precision"])])
 
@@ -168,7 +191,7 @@ def render_markdown(rows: list) -> str:
     return markdown([header(ks_of(rows))] + [cells(r) for r in rows])
 
 
-CSV_HEADER = ["agent", "episodes", "rate_seen", "rate_seen_se", "rate_unseen", "rate_unseen_se", "questions_seen",
+CSV_HEADER = ["agent", "episodes", "max_steps", "rate_seen", "rate_seen_se", "rate_unseen", "rate_unseen_se", "questions_seen",
               "questions_seen_se", "questions_unseen", "questions_unseen_se"]
 METRICS_CSV_HEADER = ["pass_k_pairs", "pass_k_left_out", "question_precision", "questions_precise",
                       "questions_judged", "questions_repeat", "questions_off"]
@@ -191,7 +214,7 @@ def csv_text(header: list, rows: list) -> str:
 
 def csv_cells(row: dict) -> list:
     """The CSV values of a row (numbers; None where there is nothing to average)."""
-    return [row["agent"], row["episodes"], *row["rate_seen"], *row["rate_unseen"], *row["questions_seen"],
+    return [row["agent"], row["episodes"], _budget(row), *row["rate_seen"], *row["rate_unseen"], *row["questions_seen"],
             *row["questions_unseen"], *_metric_cells(row)]
 
 

@@ -133,6 +133,27 @@ def read_provenance(model: str, bases: tuple = ()) -> dict:
     return {}
 
 
+STUDENT_PROVENANCE = "student.json"  # `adapt model student`'s record of how the student was built
+
+
+def trained_seeds(model: str, bases: tuple = ()) -> tuple:
+    """The scene seeds a model directory was trained on, as its provenance records them (`scene_seeds` of
+    training.json / train.json, or of `adapt model student`'s student.json, whose older form lists
+    `ask_seeds` and `oracle_seeds`); () when it records none."""
+    if not isinstance(model, str) or not model:
+        return ()
+    seeds = read_provenance(model, bases).get("scene_seeds")
+    if seeds is None:
+        for base in (Path("."), *map(Path, bases)):
+            path = base / model / STUDENT_PROVENANCE
+            if path.is_file():
+                info = _json(path)
+                settings = info.get("settings") or {}
+                seeds = info.get("scene_seeds") or [*settings.get("ask_seeds", ()), *settings.get("oracle_seeds", ())]
+                break
+    return tuple(sorted({int(x) for x in seeds or () if isinstance(x, int) and not isinstance(x, bool)}))
+
+
 class Resolver:
     """Resolves records to their method (see the module doc), reading each provenance file once."""
 

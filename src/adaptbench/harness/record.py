@@ -18,6 +18,9 @@ Version history (`version` field):
   episode's identity: resume skips an episode only under the same seed and temperature), and a model
   step's `stats` hold `over_budget: true` (and `over_budget_tokens`) when its prompt exceeded the token
   budget even with every older step left out. Older records do not say: `adapt eval` counts them apart.
+- 4: every record's `agent_config` holds `max_steps`, the step budget it ran under (scripted agents'
+  included; always-ask may take 1 + 1/N times as many steps). Older records without it ran at the
+  environment's default, 50 (`EpisodeRecord.budget`).
 
 A record of a newer version than this code knows is refused (`RecordError`), never half-read.
 """
@@ -28,8 +31,9 @@ import json
 from dataclasses import dataclass, field
 
 from ..errors import AdaptError
+from ..runtime.env import MAX_STEPS as DEFAULT_BUDGET
 
-RECORD_VERSION = 3
+RECORD_VERSION = 4
 VERDICTS = ("satisfied", "violated", "inapplicable")
 
 
@@ -120,6 +124,12 @@ class EpisodeRecord:
     def config(self) -> dict:
         """The agent configuration (version 0 records: the scripted agent with the offline user)."""
         return self.agent_config or {"agent": self.agent, "user": "offline"}
+
+    @property
+    def budget(self) -> int:
+        """The step budget the episode ran under (records before budgets were recorded ran at the
+        environment's default, 50)."""
+        return int(self.config.get("max_steps") or DEFAULT_BUDGET)
 
     @property
     def temperature(self) -> float | None:

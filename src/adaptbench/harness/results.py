@@ -24,6 +24,7 @@ import time
 from pathlib import Path
 
 from ..errors import AdaptError
+from ..runtime.env import MAX_STEPS as DEFAULT_BUDGET
 
 try:
     import fcntl
@@ -46,8 +47,10 @@ class DiskFull(ResultsError):
 
 
 def agent_config(record: dict) -> dict:
-    """The agent configuration of a record (records written before it was stored: scripted, offline user)."""
-    return record.get("agent_config") or {"agent": record.get("agent"), "user": "offline"}
+    """The agent configuration of a record (records written before it was stored: scripted, offline user;
+    before the step budget was recorded: the default budget, 50, which they ran at)."""
+    config = record.get("agent_config") or {"agent": record.get("agent"), "user": "offline"}
+    return config if "max_steps" in config else {**config, "max_steps": DEFAULT_BUDGET}
 
 
 def episode_key(record: dict) -> tuple:

@@ -63,9 +63,10 @@ def parse_seeds(text: str) -> list:
     return list(out)
 
 
-def config_of(agent: str) -> dict:
-    """The agent configuration recorded with each episode (scripted agents with the offline user)."""
-    return {"agent": agent, "user": "offline"}
+def config_of(agent: str, max_steps: int = 50) -> dict:
+    """The agent configuration recorded with each episode (scripted agents with the offline user, at the
+    step budget `max_steps`)."""
+    return {"agent": agent, "user": "offline", "max_steps": max_steps}
 
 
 def done_keys(path: Path, spec_hash: str | None = None) -> set:

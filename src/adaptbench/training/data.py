@@ -1,10 +1,12 @@
 """`adapt train data`: Reflection-DPO's dataset (Algorithm 1, DAgger-style).
 
-Rollouts follow the student (batched over episodes through the backend); at each step the privileged
-teacher proposes a^t from the student's state; steps where both act the same (same parsed action) and steps
-after two failures in a row are skipped; otherwise the student reflects (or the topic proposer asks), the
-user answers, P(a^t|x), P(a^t|x,q,answer), P(a^s|x) are scored through the backend's `score`, and the
-decision rule (`decide`) picks the chosen completion. The rejected answer (the student's own) keeps the
+Rollouts follow the student (batched over episodes through the backend) for at most `max_steps` steps
+(50, the paper's budget); at each step the privileged teacher proposes a^t from the student's state; steps
+where both act the same (same parsed action) are skipped (and, only when asked, steps after N failures in a
+row: `skip_after_failures`, this project's option, not the paper's); otherwise the student reflects (or the
+topic proposer asks), the user answers, the row's prompt x is fitted to `max_length` keeping every question
+and answer (`rows.fit_prompt`), P(a^t|x), P(a^t|x,q,answer), P(a^s|x) are scored on exactly that x through
+the backend's `score`, and the decision rule (`decide`) picks the chosen completion. The rejected answer (the student's own) keeps the
 ids the student generated (`rejected_token_ids`, `training.ids`). Rows go to `pairs.jsonl` as they are made.
 
 With `interactions=2` each (persona, task, seed) runs twice in the same scene: the second interaction's
@@ -19,6 +21,7 @@ import time
 from collections import Counter
 from dataclasses import dataclass, field, replace
 
+from ..errors import AdaptError
 from ..harness.batches import episode_id
 from ..harness.episode import Episode
 from ..harness.rollout import Job
@@ -27,7 +30,7 @@ from ..llm.backend import Request
 from ..llm.chat import render
 from ..llm.policies import sample_key
 from ..llm.prompts import ACTION_PREFIX
-from ..runtime.env import make_env
+from ..runtime.env import MAX_STEPS, make_env
 from .dataset import PairStore, mix_line, row_key
 from .decide import EPS1, EPS2, decide
 from .ids import rejected_turn_ids
@@ -40,10 +43,17 @@ from .relabel import (
     topic_question,
     topics,
 )
-from .rows import completion_tokens, fit_row
+from .rows import completion_tokens, fit_prompt
 from .score import SCORE_DTYPE, step_probabilities
 
 PHASES = ("student", "teacher", "reflection", "scoring")
+MAX_LENGTH = 8192  # fits the shipped students' prompts at 50 steps (docs/training.md): no row is shrunk
+
+
+class TooLong(AdaptError, ValueError):
+    """A row whose task, questions and answers alone exceed `max_length`: a usage error (raise it)."""
+
+    exit_code = 2
 
 
 @dataclass(frozen=True)
@@ -53,15 +63,16 @@ class DataSettings:
     split: str | None
     personas: tuple
     tasks: tuple
-    seeds: tuple = (0,)
+    seeds: tuple = (100,)  # training scenes: never the evaluation seeds 0-3 (harness.seeds)
     interactions: int = 1
     questions: str = "student"  # or "topics"
     eps1: float = EPS1
     eps2: float = EPS2
-    max_length: int | None = 1024
+    max_length: int | None = MAX_LENGTH
     width: int = 8
     workers: int = 1
-    max_steps: int | None = None  # step budget per episode (None: the environment's, 50)
+    max_steps: int = MAX_STEPS  # step budget per episode (the paper's 50)
+    skip_after_failures: int | None = None  # skip steps after N failures in a row (ours, off by default)
 
 
 @dataclass
@@ -137,8 +148,7 @@ class Builder:
 
     def _start(self, persona, task, seed, interaction, prior: str = "") -> _Run:
         job = Job(self.student.name, persona, task, seed)
-        env = make_env(self.domain, persona, task, seed,
-                       **({"max_steps": self.s.max_steps} if self.s.max_steps else {}))
+        env = make_env(self.domain, persona, task, seed, max_steps=self.s.max_steps)
         ep = Episode(f"{episode_id(job)}/i{interaction}", env)
         self.student.start(ep.id, env)
         self.student.priors[ep.id] = prior
@@ -189,8 +199,9 @@ class Builder:
             self.store.append(self._row(r, v, d, a_t, q, None))
 
     def _skip(self, r: _Run, student: str, teacher: str) -> str | None:
-        if r.failures >= 2:
-            return "after_two_failures"
+        n = self.s.skip_after_failures
+        if n and r.failures >= n:
+            return f"after_{n}_failures"
         return "same_action" if same_action(self.parser, student, teacher) else None
 
     def _reflect(self, asks: list) -> list:
@@ -206,14 +217,15 @@ class Builder:
 
     def _row(self, r: _Run, view, decision, a_t: str, q: str | None, reason: str | None) -> dict:
         tok = self.student.backend.tokenizer
-        prompt = decision.prompt
+        fitted = self._fit(r, view, decision.prompt, decision.action, a_t, q)
+        prompt = fitted.prompt
         answer = None
         probs = None
         kind = "skipped"
         if reason is None:
             answer = r.episode.env.user(question_text(q) or q, ()) if question_text(q) else ""
             t0 = time.perf_counter()
-            x = render(tok, prompt)
+            x = render(tok, prompt)  # exactly the prompt the row trains on
             xq = render(tok, answered_prompt(self.student, prompt, view, q, answer))
             probs = step_probabilities(self.student.backend, x, xq, a_t, decision.action,
                                        (decision.stats or {}).get("token_ids"), SCORE_DTYPE)
@@ -221,20 +233,34 @@ class Builder:
             d = decide(probs.p_teacher, probs.p_teacher_given_answer, probs.p_student, self.s.eps1, self.s.eps2)
             kind, reason = d.kind, d.skip_reason
         chosen = {"question": q, "teacher": a_t}.get(kind)
-        fitted, n, cut = fit_row(tok, prompt, completion_tokens(tok, ACTION_PREFIX + decision.action,
-                                                                ACTION_PREFIX + (chosen or "")), self.s.max_length)
-        ids, canon = rejected_turn_ids(tok, fitted, decision.action, decision.stats)
-        row = self._fields(r, view, decision.action, a_t, q, answer, probs, kind, reason, chosen, fitted, n, cut)
-        row["over_budget"] = bool(fitted.meta.get("over_budget"))  # over max_length even cut to the last step
-        row.update(rejected_token_ids=ids, rejected_canonical=canon,
+        ids, canon = rejected_turn_ids(tok, prompt, decision.action, decision.stats)
+        row = self._fields(r, view, decision.action, a_t, q, answer, probs, kind, reason, chosen, prompt,
+                           fitted.tokens, fitted.truncated)
+        row.update(qa_kept=fitted.qa_kept, qa_total=fitted.qa_total, over_budget=False, max_steps=self.s.max_steps,
+                   rejected_token_ids=ids, rejected_canonical=canon,
                    score_dtype=self.student.backend.score_dtype(SCORE_DTYPE) if probs else None)
         return row
 
-    def _fields(self, r, view, a_s, a_t, q, answer, probs, kind, reason, chosen, fitted, n, cut) -> dict:
+    def _fit(self, r: _Run, view, prompt, a_s: str, a_t: str, q: str | None):
+        """The row's prompt fitted to `max_length` with room for the longest completion it may take (the
+        student's action, the teacher's, the question): every question and answer kept; `TooLong` when
+        they alone do not fit."""
+        tok = self.student.backend.tokenizer
+        room = completion_tokens(tok, *(ACTION_PREFIX + t for t in (a_s, a_t, q) if t))
+        fitted = fit_prompt(tok, prompt, room, self.s.max_length)
+        if fitted.over:
+            need = fitted.tokens + room
+            raise TooLong(f"--max-length {self.s.max_length} cannot hold the task and the {fitted.qa_total} "
+                          f"question(s) and answer(s) of {r.job.persona}/{r.job.task} seed {r.job.seed} step "
+                          f"{view.step} ({need} tokens with every other observation left out): raise "
+                          f"--max-length to at least {need}")
+        return fitted
+
+    def _fields(self, r, view, a_s, a_t, q, answer, probs, kind, reason, chosen, prompt, n, cut) -> dict:
         msg = lambda t: [{"role": "assistant", "content": ACTION_PREFIX + t}]  # noqa: E731
         p = probs
         return {
-            "prompt": [dict(m) for m in fitted.messages], "chosen": msg(chosen) if chosen else None,
+            "prompt": [dict(m) for m in prompt.messages], "chosen": msg(chosen) if chosen else None,
             "rejected": msg(a_s), "kind": kind, "skip_reason": reason, "teacher_action": a_t,
             "student_action": a_s, "question": q, "answer": answer,
             "question_source": self.s.questions if q else None,
@@ -246,6 +272,16 @@ class Builder:
             "task": r.job.task, "seed": r.job.seed, "interaction": r.interaction, "step": view.step,
             "prior": r.prior, "student_model": self.model_name, "teacher": self.teacher.name,
             "teacher_model": self.teacher.model}
+
+
+def opening_tokens(domain, student, settings: DataSettings) -> int:
+    """Tokens of the shortest row the first unit can make: its opening prompt (instructions, layout, task)
+    and a short completion; `--max-length` below it cannot hold any row."""
+    persona, task, seed = units(settings)[0]
+    env = make_env(domain, persona, task, seed, max_steps=settings.max_steps)
+    view = Episode("opening", env).view()
+    tok = student.backend.tokenizer
+    return len(tok(render(tok, student.builder.prompt(view)), add_special_tokens=False)["input_ids"]) + 32
 
 
 class Sink:
@@ -288,7 +324,11 @@ def _work(make_builder, store_keys, width: int):
         b = make_builder(sink)
         for chunk in _chunks(jobs, width):
             before = dict(b.times.seconds)
-            b.run_units(chunk)
+            try:
+                b.run_units(chunk)
+            except TooLong as exc:  # the parent raises it: one line, not a dead worker
+                yield None, [], {"error": str(exc)}
+                return
             spent = {k: b.times.seconds[k] - before[k] for k in PHASES}
             rows: dict = {u: [] for u in chunk}
             for row in sink.take():
@@ -313,7 +353,9 @@ def build(make_builder, settings: DataSettings, store: PairStore, progress=None)
     times, n = Timings(), settings.interactions
     width = min(settings.width, -(-len(todo) // settings.workers))  # no worker hoards the units another could run
     records = run_stream_pool(todo, settings.workers, _work(make_builder, store.keys, width))
-    for done, (_u, rows, spent) in enumerate(records, 1):
+    for done, (u, rows, spent) in enumerate(records, 1):
+        if u is None:
+            raise TooLong(spent["error"])
         for row in rows:
             if not store.done(row_key(row)):
                 store.append(row)
@@ -329,4 +371,4 @@ def mix(rows: list) -> Counter:
     return Counter(r["kind"] for r in rows)
 
 
-__all__ = ["Builder", "DataSettings", "Request", "Sink", "build", "jobs", "mix", "mix_line", "row_key", "units"]
+__all__ = ["MAX_LENGTH", "Builder", "DataSettings", "Request", "Sink", "TooLong", "build", "opening_tokens", "jobs", "mix", "mix_line", "row_key", "units"]

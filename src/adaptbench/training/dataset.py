@@ -104,7 +104,27 @@ def summarise(rows: list) -> dict:
             if tokens else {}, "truncated": sum(bool(r["truncated"]) for r in rows),
             "over_budget": sum(bool(r.get("over_budget")) for r in rows), "dropped": 0,
             "rejected_ids": _canonical_counts(rows),
-            "score_dtypes": sorted({r["score_dtype"] for r in rows if r.get("score_dtype")})}
+            "score_dtypes": sorted({r["score_dtype"] for r in rows if r.get("score_dtype")}),
+            "scene_seeds": sorted({r["seed"] for r in rows}), **_qa(rows), "delta_q": _quantiles(rows, "delta_q")}
+
+
+def _qa(rows: list) -> dict:
+    """Questions and answers in the rows' full prompts, those the fitted prompts kept, and the rows that
+    lost any (0 unless rows were written before fitting kept them: then they are unknown)."""
+    known = [r for r in rows if r.get("qa_total") is not None]
+    return {"qa_total": sum(r["qa_total"] for r in known), "qa_kept": sum(r["qa_kept"] for r in known),
+            "rows_lost_qa": sum(r["qa_kept"] < r["qa_total"] for r in known),
+            "rows_qa_unknown": len(rows) - len(known)}
+
+
+def _quantiles(rows: list, key: str) -> dict:
+    """min, quartiles and max of a numeric field over the rows that have it ({} for none)."""
+    xs = sorted(r[key] for r in rows if isinstance(r.get(key), int | float))
+    if not xs:
+        return {}
+    at = lambda q: round(xs[min(len(xs) - 1, int(q * len(xs)))], 4)  # noqa: E731
+    return {"n": len(xs), "min": round(xs[0], 4), "q25": at(0.25), "median": at(0.5), "q75": at(0.75),
+            "max": round(xs[-1], 4), "above_eps1": sum(x > (rows[0].get("eps1") or 0.2) for x in xs)}
 
 
 def _canonical_counts(rows: list) -> dict:
@@ -123,5 +143,5 @@ def mix_line(summary: dict) -> str:
     reasons = ", ".join(f"{r} {c}" for r, c in sorted(summary["skip_reasons"].items())) or "none"
     return (f"{summary['pairs']} steps: {k.get('question', 0)} questions ({s['question']:.0%}), "
             f"{k.get('teacher', 0)} teacher actions ({s['teacher']:.0%}), {k.get('skipped', 0)} skipped "
-            f"({reasons}); {summary['truncated']} prompts left-truncated, {summary.get('over_budget', 0)} still over "
-            "--max-length (kept, flagged over_budget), 0 dropped")
+            f"({reasons}); {summary['truncated']} prompts shrunk to --max-length, "
+            f"{summary.get('rows_lost_qa', 0)} lost a question or answer, 0 dropped")

@@ -4,8 +4,9 @@
 
 1. Teacher trajectories on the split's training personas (its unseen personas are never seen), all 8
    tasks: `oracle-ask` (the oracle's plan, asking first wherever that plan departs from the defaults) on
-   `ask_seeds`, the plain `oracle` (no questions) on `oracle_seeds`; scene seed 0 is left out of both,
-   for evaluation. Written to OUT/data/*.jsonl (resumable, like `adapt rollout`).
+   `ask_seeds`, the plain `oracle` (no questions) on `oracle_seeds`; both from 100 up, apart from the
+   evaluation seeds 0-3 (`harness.seeds`; the shipped checkpoint was built before, on seeds 1-6, and
+   `adapt eval` flags its episodes on seeds 1-3). Written to OUT/data/*.jsonl (resumable, like `adapt rollout`).
 2. A tiny model built locally (`llm.tiny.init_tiny`: a tokenizer trained on the domain's text, a random
    Llama from `seed`).
 3. `training.pretrain.pretrain` (TRL `SFTTrainer`, completion-only loss on the actions, prompts rendered
@@ -26,8 +27,8 @@ class StudentSettings:
     """How the student is built (the defaults made the shipped checkpoint)."""
 
     split: str = "0"  # its unseen personas are left out of the data
-    ask_seeds: tuple = tuple(range(1, 5))  # scene seeds of the oracle-ask episodes
-    oracle_seeds: tuple = tuple(range(5, 7))  # scene seeds of the plain oracle episodes
+    ask_seeds: tuple = tuple(range(100, 104))  # scene seeds of the oracle-ask episodes (never 0-3)
+    oracle_seeds: tuple = tuple(range(104, 106))  # scene seeds of the plain oracle episodes
     hidden: int = 128
     layers: int = 4
     vocab: int = 4096
@@ -77,7 +78,7 @@ def build_student(domain, out, s: StudentSettings = StudentSettings(), log=print
     t_data = time.perf_counter() - t0
     base = init_tiny(domain, out / "init", seed=s.seed, vocab_size=s.vocab, hidden=s.hidden, layers=s.layers)
     r = pretrain(domain, base, files, out, steps=s.steps, lr=s.lr, seed=s.seed, log=log)
-    info = {"settings": asdict(s), "spec_hash": domain.spec_hash, "data": [str(f.relative_to(out)) for f in files],
+    info = {"settings": asdict(s), "scene_seeds": sorted({*s.ask_seeds, *s.oracle_seeds}), "spec_hash": domain.spec_hash, "data": [str(f.relative_to(out)) for f in files],
             "pretrain": asdict(r), "seconds": {"data": round(t_data, 1), "pretrain": round(r.seconds, 1),
                                                "total": round(time.perf_counter() - t0, 1)},
             "machine": f"{platform.machine()}, torch 1 thread"}
