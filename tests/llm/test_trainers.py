@@ -140,6 +140,20 @@ def test_a_template_that_renders_the_prompt_otherwise_gets_the_generation_layout
 
 
 @SKIP_MODELS
+def test_data_on_evaluation_seeds_is_refused_unless_asked(tiny, tmp_path):
+    data = tmp_path / "data"
+    _pairs(data, [_row(0, "teacher", _messages(5)), dict(_row(1, "teacher", _messages(5)), seed=100)])
+    args = ("train", "sft", "--data", data, "--model", tiny, "--max-steps", 1, "--batch", 1, "--threads", 1)
+    refused = _adapt(*args, "--out", tmp_path / "a")
+    said = [x for x in refused.stderr.splitlines() if x.startswith("adapt:")]
+    assert refused.returncode == 2 and len(said) == 1 and "evaluation scene seeds 0" in said[0], refused.stderr
+    assert "--allow-eval-seeds" in said[0] and not (tmp_path / "a" / "merged").exists()
+    allowed = _adapt(*args, "--out", tmp_path / "b", "--allow-eval-seeds")
+    assert allowed.returncode == 0, allowed.stderr
+    assert json.loads((tmp_path / "b" / "train.json").read_text())["scene_seeds"] == [0, 100]
+
+
+@SKIP_MODELS
 def test_long_row_is_reported_never_dropped(backend, tmp_path):
     from adaptbench.training.trainers import DPOSettings
     from adaptbench.training.trainers.run import TrainError, prepare, report_long
@@ -225,6 +239,7 @@ def test_chain_data_dpo_rollout_on_the_merged_model(tiny, tmp_path):
     assert got.returncode == 0, got.stderr
     r = json.loads((out / "train.json").read_text())
     assert r["rows"] == summary["trainable"] and r["long_rows_left_out"] == 0 and r["steps"] == 2
+    assert r["scene_seeds"] == [100]  # the data's (training scenes), recorded for `adapt eval`
     assert r["rows_with_generated_rejected_ids"] == r["rows"]  # the student's own ids (rejected_token_ids)
     assert r["first"]["loss"] == pytest.approx(0.6931, abs=1e-3)  # log 2: the adapter starts as the reference
     assert r["last"]["rewards/margins"] > 0 and r["last"]["loss"] < r["first"]["loss"]
@@ -286,10 +301,10 @@ def test_sft_no_reflection_and_star_gate_train_and_merge(tiny, tmp_path):
     data, runs = tmp_path / "data", tmp_path / "student.jsonl"
     summary = _data(tiny, data)
     played = _adapt("rollout", "--agent", "planner", "--model", tiny, "--personas", "sarah,ron", "--tasks", "eggs",
-                    "--seeds", 0, "--max-steps", 3, "--out", runs, "--quiet")
+                    "--seeds", 100, "--max-steps", 3, "--out", runs, "--quiet")
     assert played.returncode == 0, played.stderr
     common = ["--model", str(tiny), "--max-steps", "1", "--batch", "2", "--logging-steps", "1"]
-    for method, src in (("sft", data), ("no-reflection", data), ("star-gate", runs)):
+    for method, src in (("sft", data), ("no-reflection", data), ("star-gate", runs)):  # runs: seeds 100 (training)
         out = tmp_path / method
         assert main(["train", method, "--data", str(src), "--out", str(out), *common]) == 0
         r = json.loads((out / "train.json").read_text())

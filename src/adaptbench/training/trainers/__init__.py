@@ -23,7 +23,15 @@ def train(method: str, s, spec=None, log=None) -> dict:
     import time
 
     from . import engine
-    from .run import check_resume, last_checkpoint, load_tokenizer, prepare, report_long, write_settings
+    from .run import (
+        check_resume,
+        last_checkpoint,
+        load_tokenizer,
+        prepare,
+        report_long,
+        scene_seeds,
+        write_settings,
+    )
 
     log = log or engine.stderr
     out = Path(s.out)
@@ -34,6 +42,7 @@ def train(method: str, s, spec=None, log=None) -> dict:
         torch.set_num_threads(s.threads)
     tok = load_tokenizer(s.model)
     p = prepare(method, s, tok, spec)
+    seeds = scene_seeds(p, s)
     note = report_long(p, s, out)
     if note:
         log(f"adapt: {note}")
@@ -50,7 +59,8 @@ def train(method: str, s, spec=None, log=None) -> dict:
         + (f", resuming from {resume}" if resume else "")
         + (f"; reference log-probs precomputed ({setup:.1f} s with loading)" if pre else ""))
     timing = engine.fit(trainer, resume, log)
-    result = {"method": recorded_method(method, s), **_counts(p), "steps": trainer.state.global_step,
+    result = {"method": recorded_method(method, s), **_counts(p), "scene_seeds": list(seeds),
+              "steps": trainer.state.global_step,
               "precomputed_reference": pre,
               "setup_seconds": round(setup, 2), "setup_cpu_seconds": round(setup_cpu, 2), **timing,
               **engine.summary_of(trainer)}

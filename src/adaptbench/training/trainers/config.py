@@ -47,8 +47,8 @@ class TrainSettings:
     batch: int = setting(4, "rows per device per step (default 4)", int)
     grad_accum: int = setting(1, "gradient accumulation steps (default 1)", int)
     lr: float = setting(1e-4, "learning rate (default 1e-4, the release's)", float)
-    max_length: int = setting(2048, "tokens of prompt plus the longer completion per row; every row is checked "
-                                    "and none is cut or dropped silently (default 2048)", int)
+    max_length: int = setting(8192, "tokens of prompt plus the longer completion per row; every row is checked "
+                                    "and none is cut or dropped silently (default 8192, as `adapt train data`)", int)
     long_rows: str = setting("refuse", "rows longer than --max-length: refuse (exit 1, listing them) or skip "
                                        "(leave them out, listed in OUT/long_rows.jsonl and counted)", str,
                              ("refuse", "skip"))
@@ -64,6 +64,8 @@ class TrainSettings:
                              str, ("auto", "float32", "bfloat16"))
     gradient_checkpointing: bool = setting(False, "recompute activations in the backward pass (less memory)", bool)
     threads: int = setting(None, "CPU threads for torch (default: torch's)", int)
+    allow_eval_seeds: bool = setting(False, "train on data from the evaluation scene seeds 0-3 (refused by default)",
+                                     bool)
 
     def check(self) -> None:
         """SettingsError on a value out of range."""

@@ -20,7 +20,7 @@ from ...errors import AdaptError
 from .config import as_dict
 from .encode import Encoder, check_lengths, key_text
 
-RESUMABLE = ("max_steps", "epochs", "save_steps", "logging_steps", "threads", "long_rows", "out")
+RESUMABLE = ("max_steps", "epochs", "save_steps", "logging_steps", "threads", "long_rows", "out", "allow_eval_seeds")
 
 
 class TrainError(AdaptError):
@@ -36,6 +36,7 @@ class Prepared:
     rows: list
     left_out: dict = field(default_factory=dict)
     long: list = field(default_factory=list)
+    seeds: tuple = ()  # the scene seeds of the data
 
 
 def load_tokenizer(model: str):
@@ -68,6 +69,7 @@ def prepare(method: str, s, tokenizer, spec=None) -> Prepared:
             raise R.DataError(f"--data {s.data}: a rollout record is malformed ({type(exc).__name__}: {exc})") from None
         left = {"rollouts": len(records), "rollouts_kept": len(kept), "rollouts_not_replayable": bad,
                 "split": split_of(domain, records)}
+        seeds = {r["seed"] for r in kept}
     else:
         pairs = R.read_pairs(s.data)
         build = {"dpo": R.dpo_rows, "sft": R.sft_rows,
@@ -78,10 +80,25 @@ def prepare(method: str, s, tokenizer, spec=None) -> Prepared:
             raise R.DataError(f"--data {s.data}: a row of pairs.jsonl is malformed ({type(exc).__name__}: "
                               f"{exc}); rebuild it with `adapt train data`") from None
         left = {"pairs": len(pairs)}
+        seeds = {r.get("seed") for r in pairs}
     if not encoded:
         raise TrainError(f"--data {s.data}: no rows to train {method} on ({json.dumps(left)})")
     kept, long = check_lengths(encoded, s.max_length)
-    return Prepared(kept, left, long)
+    return Prepared(kept, left, long, tuple(sorted(x for x in seeds if isinstance(x, int))))
+
+
+def scene_seeds(p: Prepared, s) -> tuple:
+    """The scene seeds the trained model has seen: its data's and its base model's (`methods.trained_seeds`);
+    TrainError when they meet the evaluation seeds 0-3, unless `s.allow_eval_seeds`."""
+    from ...harness.methods import trained_seeds
+    from ...harness.seeds import ALLOW_FLAG, eval_overlap, seeds_text
+
+    bad = eval_overlap(p.seeds)
+    if bad and not getattr(s, "allow_eval_seeds", False):
+        raise TrainError(f"--data {s.data} holds episodes on the evaluation scene seeds {seeds_text(bad)}: train on "
+                         f"scenes from 100 up (`adapt train data --seeds 100-103`, `adapt rollout --seeds 100-102` for "
+                         f"STaR-GATE), or pass {ALLOW_FLAG} to train on them anyway", code=2)
+    return tuple(sorted({*p.seeds, *trained_seeds(str(s.model))}))
 
 
 def report_long(p: Prepared, s, out: Path) -> str | None:
