@@ -25,7 +25,7 @@ def parse_body(raw: bytes | str) -> dict:
     if not raw:
         return {}
     try:
-        body = json.loads(raw)
+        body = json.loads(raw.decode("utf-8") if isinstance(raw, bytes) else raw)
     except RecursionError:
         raise BadRequest(400, f"JSON nested too deep (at most {MAX_DEPTH} levels)", "INVALID_JSON") from None
     except UnicodeDecodeError as exc:
