@@ -209,3 +209,31 @@ def test_idle_trickling_and_lying_connections_are_closed(port):
     finally:
         for s in socks:
             s.close()
+
+
+def test_an_idle_websocket_is_closed_after_the_session_time_out():
+    """A /ws connection silent longer than the session time-out (1 s here) gets a close frame (1001) and
+    its session is gone; a connection that keeps talking is not affected."""
+    import asyncio
+    import json
+
+    pytest.importorskip("websockets", reason="the envs extra is not installed: pip install -e '.[envs]'")
+    from websockets.asyncio.client import connect
+    from websockets.exceptions import ConnectionClosed
+
+    async def main(port: int):
+        async with connect(f"ws://127.0.0.1:{port}/ws") as idle, connect(f"ws://127.0.0.1:{port}/ws") as busy:
+            for ws in (idle, busy):
+                await ws.send(json.dumps({"type": "reset", "data": {"seed": 0}}))
+                assert json.loads(await ws.recv())["type"] == "observation"
+            for _ in range(8):  # 2 s of steps on `busy`
+                await busy.send(json.dumps({"type": "step", "data": {"text": "Look for eggs"}}))
+                assert json.loads(await busy.recv())["type"] == "observation"
+                await asyncio.sleep(0.25)
+            with pytest.raises(ConnectionClosed) as exc:
+                await asyncio.wait_for(idle.recv(), 5)
+            assert exc.value.rcvd.code == 1001 and "idle for 1 s" in exc.value.rcvd.reason
+            return request(port, "GET", "/health")[1]["sessions"]
+
+    with serve_env("--timeout", "1") as port:
+        assert asyncio.run(main(port)) == 1  # only the busy connection's session is left

@@ -17,6 +17,8 @@ than the session time-out is closed (code 1001).
 from __future__ import annotations
 
 import asyncio
+import contextlib
+import time
 
 from .server import Handlers, reset_args, state_of
 from .session import MAX_ACTION_CHARS
@@ -106,13 +108,12 @@ def websocket_endpoint(handlers: Handlers):
     async def endpoint(websocket):
         await websocket.accept()
         conn = Connection(handlers)
+        last = [time.monotonic()]
+        watchdog = asyncio.create_task(_close_when_idle(websocket, last, idle, asyncio.current_task()))
         try:
             while True:
-                try:
-                    message = await asyncio.wait_for(websocket.receive(), idle)
-                except asyncio.TimeoutError:
-                    await websocket.close(code=1001, reason=f"idle for {idle:g} s")
-                    return
+                message = await websocket.receive()
+                last[0] = time.monotonic()
                 if message["type"] == "websocket.disconnect":
                     return
                 reply = reply_to(conn, message.get("text") or message.get("bytes") or b"")
@@ -120,9 +121,27 @@ def websocket_endpoint(handlers: Handlers):
                     await websocket.close(code=1000)
                     return
                 await websocket.send_text(render(reply).decode("utf-8"))
-        except Exception:  # noqa: BLE001 - the peer vanished mid-send: nothing to answer
+        except Exception:  # noqa: BLE001 - the peer vanished mid-send
             return
+        except asyncio.CancelledError:
+            if not watchdog.done() or watchdog.cancelled():
+                raise  # the server is shutting down
+            return  # the watchdog ended an idle connection
         finally:
+            watchdog.cancel()
             conn.end()
 
     return endpoint
+
+
+async def _close_when_idle(websocket, last: list, idle: float, endpoint) -> None:
+    """Close the connection once nothing has arrived for `idle` seconds and end its endpoint (one timer
+    per connection rather than a time-out around every receive)."""
+    while True:
+        wait = last[0] + idle - time.monotonic()
+        if wait <= 0:
+            with contextlib.suppress(Exception):
+                await websocket.close(code=1001, reason=f"idle for {idle:g} s")
+            endpoint.cancel()
+            return
+        await asyncio.sleep(wait)
