@@ -30,11 +30,12 @@ def server(domain):
     """A server in a thread of this process (uvicorn), with a small cap and a short time-out."""
     import uvicorn
 
-    from adaptbench.envs.server import Limits, create_app
+    from adaptbench.envs.server import Limits, create_app, uvicorn_config
 
     port = _free_port()
-    app = create_app(domain, Limits(max_sessions=80, timeout=30.0))
-    srv = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=port, log_level="error", access_log=False))
+    limits = Limits(max_sessions=80, timeout=30.0)
+    app = create_app(domain, limits)
+    srv = uvicorn.Server(uvicorn_config(app, "127.0.0.1", port, limits, "error"))
     thread = threading.Thread(target=srv.run, daemon=True)
     thread.start()
     deadline = time.monotonic() + 20

@@ -6,6 +6,7 @@ connections are closed after the documented time-out while /health stays fast.""
 from __future__ import annotations
 
 import contextlib
+import json
 import socket
 import time
 
@@ -215,7 +216,6 @@ def test_an_idle_websocket_is_closed_after_the_session_time_out():
     """A /ws connection silent longer than the session time-out (1 s here) gets a close frame (1001) and
     its session is gone; a connection that keeps talking is not affected."""
     import asyncio
-    import json
 
     pytest.importorskip("websockets", reason="the envs extra is not installed: pip install -e '.[envs]'")
     from websockets.asyncio.client import connect
@@ -237,3 +237,21 @@ def test_an_idle_websocket_is_closed_after_the_session_time_out():
 
     with serve_env("--timeout", "1") as port:
         assert asyncio.run(main(port)) == 1  # only the busy connection's session is left
+
+
+@pytest.mark.parametrize("raw", [
+    b"GARBAGE\r\n\r\n",
+    b"POST /step HTTP/1.1\r\nHost: x\r\nContent-Length: ten\r\n\r\n{}",
+    b"POST /step HTTP/1.1\r\nHost: x\r\nno colon here\r\n\r\n",
+    b"POST /step HTTP/1.1\r\nHost: x\r\nContent-Length: 2\r\nContent-Length: 3\r\n\r\n{}",
+], ids=["request line", "Content-Length not a number", "header without colon", "two Content-Lengths"])
+def test_unparsable_http_is_a_json_400(port, raw):
+    with socket.create_connection(("127.0.0.1", port), timeout=5) as s:
+        s.sendall(raw)
+        data = b""
+        while chunk := s.recv(65536):
+            data += chunk
+    head, _, body = data.partition(b"\r\n\r\n")
+    assert head.startswith(b"HTTP/1.1 400") and b"application/json" in head, data
+    assert "error" in json.loads(body)
+    assert request(port, "GET", "/health")[0] == 200

@@ -4,12 +4,15 @@
 trickling one (a byte now and then) and a half-sent request line are closed when it passes, whatever
 they send meanwhile. The body's own deadline (a Content-Length that promises more bytes than come) is
 the app's: `server.read_body` answers 408. A WebSocket is past this stage once upgraded (its idle limit
-is the session time-out).
+is the session time-out). A request h11 cannot parse (a bad request line, header or Content-Length) is
+answered 400 with a JSON message, as every other refusal, and the connection closed.
 """
 
 from __future__ import annotations
 
 import asyncio
+import contextlib
+import json
 
 from uvicorn.protocols.http.h11_impl import H11Protocol
 
@@ -41,6 +44,18 @@ class DeadlineH11Protocol(H11Protocol):
     def handle_websocket_upgrade(self, event) -> None:  # noqa: D102
         self._disarm()
         super().handle_websocket_upgrade(event)
+
+    def send_400_response(self, msg: str) -> None:  # noqa: D102 - a request h11 cannot parse: 400 in JSON
+        import h11
+
+        body = json.dumps({"error": f"{msg.rstrip('.')} (not an HTTP/1.1 request h11 can parse)"}).encode()
+        headers = [(b"content-type", b"application/json"), (b"connection", b"close"),
+                   (b"content-length", str(len(body)).encode())]
+        with contextlib.suppress(h11.LocalProtocolError):
+            self.transport.write(self.conn.send(h11.Response(status_code=400, headers=headers, reason=b"Bad Request")))
+            self.transport.write(self.conn.send(h11.Data(data=body)))
+            self.transport.write(self.conn.send(h11.EndOfMessage()))
+        self.transport.close()
 
     def _arm(self) -> None:
         self._disarm()
