@@ -255,3 +255,11 @@ def test_unparsable_http_is_a_json_400(port, raw):
     assert head.startswith(b"HTTP/1.1 400") and b"application/json" in head, data
     assert "error" in json.loads(body)
     assert request(port, "GET", "/health")[0] == 200
+
+
+@pytest.mark.parametrize("method,path,status,message", [
+    ("GET", "/nowhere", 404, "no route '/nowhere'"), ("GET", "/step", 405, "GET is not allowed on /step"),
+    ("PUT", "/reset", 405, "PUT is not allowed"), ("GET", "/ws", 404, "routes: "),
+])
+def test_unknown_routes_and_methods_are_json(port, method, path, status, message):
+    _refused(request(port, method, path), status, message)

@@ -45,6 +45,8 @@ from .wire import MAX_BODY, BadRequest, action_text, field, parse_body, render
 __all__ = ["MAX_BODY", "BadRequest", "Handlers", "Limits", "Sessions", "create_app", "serve"]
 
 MAX_SEED = 2**63 - 1
+ROUTES = ("POST /reset, POST /step, GET|POST /state, POST /close, DELETE /sessions/{id}, GET /health, GET /info, "
+          "WebSocket /ws")
 RESET_FIELDS = {"seed", "task", "persona", "reward", "max_steps", "prior", "session_id", "secret"}
 
 
@@ -285,7 +287,13 @@ def create_app(domain: CompiledDomain, limits: Limits | None = None):
         ("/close", "close", ["POST"]), ("/sessions/{sid}", "close", ["DELETE"]), ("/health", "health", ["GET"]),
         ("/info", "info", ["GET"]))]
     routes.append(WebSocketRoute("/ws", websocket_endpoint(handlers)))
-    app = Starlette(routes=routes, lifespan=lifespan)
+
+    async def no_route(request, exc):
+        path = request.url.path[:80]
+        what = f"{request.method} is not allowed on {path}" if exc.status_code == 405 else f"no route {path!r}"
+        return _response({"error": f"{what} (routes: {ROUTES})"}, exc.status_code)
+
+    app = Starlette(routes=routes, lifespan=lifespan, exception_handlers={404: no_route, 405: no_route})
     app.state.handlers = handlers
     return app
 
