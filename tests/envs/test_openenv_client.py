@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import asyncio
 import json
+import time
 
 import pytest
 
@@ -21,6 +22,14 @@ from .serverproc import request, serve_env  # noqa: E402
 def port():
     with serve_env("--max-sessions", "64") as p:
         yield p
+
+
+def _sessions(port: int, expected: int) -> int:
+    """Open sessions on the server, polled for up to 5 s until `expected` (closes land asynchronously)."""
+    deadline = time.monotonic() + 5
+    while (n := request(port, "GET", "/health")[1]["sessions"]) != expected and time.monotonic() < deadline:
+        time.sleep(0.05)
+    return n
 
 
 def _sync_episode(port: int, ep: dict) -> tuple:
@@ -54,7 +63,7 @@ def _check(result, state, ep: dict) -> None:
 def test_sync_generic_client_plays_a_whole_episode(port, oracle_eggs):
     result, state = _sync_episode(port, oracle_eggs)
     _check(result, state, oracle_eggs)
-    assert request(port, "GET", "/health")[1]["sessions"] == 0  # the session ended with its connection
+    assert _sessions(port, 0) == 0  # the session ended with its connection
 
 
 def test_async_generic_clients_play_concurrently(port, oracle_mix):
@@ -105,7 +114,7 @@ def test_a_reset_replaces_only_this_connections_episode(port):
             first = (await a.state())["episode_id"]
             await a.reset(seed=2, task="parfait", persona="maya")
             assert (await a.state())["episode_id"] != first
-            assert request(port, "GET", "/health")[1]["sessions"] == 2  # a's first episode is gone
+            assert _sessions(port, 2) == 2  # a's first episode is gone
             return await b.state()
 
     state = asyncio.run(main())
