@@ -156,6 +156,15 @@ def test_cap_and_time_out(domain):
     assert len(h.sessions) == 1 and h.sessions.expired == 2
 
 
+def test_closing_an_expired_session_is_quiet(server):
+    from adaptbench.envs.client import EnvClient
+
+    with EnvClient(server["url"]) as c:
+        c.reset(seed=0)
+        server["app"].state.handlers.sessions.drop(c.session_id)  # as the reaper would
+    assert c.session_id is None
+
+
 CLIENT = """
 import sys, time
 from adaptbench.envs.client import EnvClient
