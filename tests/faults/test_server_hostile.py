@@ -166,7 +166,11 @@ def _open_stalled(port: int, n: int) -> dict:
                       b"Content-Length: 1000\r\n\r\n{\"a\":")
         s.setblocking(False)
         socks[s] = kind
+        OPENED[s] = time.monotonic()
     return socks
+
+
+OPENED: dict = {}  # socket -> when it was opened
 
 
 TRICKLE = b"POST /step HTTP/1.1\r\nHost: localhost\r\nContent-Type: application/json\r\n"
@@ -174,7 +178,7 @@ TRICKLE = b"POST /step HTTP/1.1\r\nHost: localhost\r\nContent-Type: application/
 
 def _watch(port: int, socks: dict, seconds: float) -> tuple:
     """Trickle a byte into each trickling socket every 0.2 s, time /health meanwhile, until every socket is
-    closed or `seconds` pass: (seconds after the start each socket closed, what each received, /health times)."""
+    closed or `seconds` pass: (seconds after its opening each socket closed, what each received, /health times)."""
     start, closed_at, got, health, n = time.monotonic(), {}, {}, [], 0
     while len(closed_at) < len(socks) and time.monotonic() - start < seconds:
         for s in (s for s in socks if s not in closed_at):
@@ -182,7 +186,7 @@ def _watch(port: int, socks: dict, seconds: float) -> tuple:
                 with contextlib.suppress(OSError):
                     s.send(TRICKLE[n % len(TRICKLE):n % len(TRICKLE) + 1])
             if _closed(s, got):
-                closed_at[s] = time.monotonic() - start
+                closed_at[s] = time.monotonic() - OPENED[s]
         n += 1
         t = time.perf_counter()
         assert request(port, "GET", "/health", timeout=5)[0] == 200
