@@ -155,13 +155,14 @@ def _closed(sock: socket.socket, got: dict) -> bool:
 
 
 def _open_stalled(port: int, n: int) -> dict:
-    """n connections, each {socket: kind}: idle (nothing sent), trickle (sent later, a byte at a time) or
-    lying (headers promise a 1000-byte body, 5 bytes follow)."""
-    kinds, socks = ["idle", "trickle", "lying"], {}
+    """n connections, each {socket: kind}: idle (nothing sent), trickle (a request line sent later, a byte
+    at a time), lying (headers promise a 1000-byte body, 5 bytes follow) or slow_body (the same headers,
+    then the body a byte at a time)."""
+    kinds, socks = ["idle", "trickle", "lying", "slow_body"], {}
     for i in range(n):
         s = socket.create_connection(("127.0.0.1", port), timeout=5)
-        kind = kinds[i % 3]
-        if kind == "lying":
+        kind = kinds[i % len(kinds)]
+        if kind in ("lying", "slow_body"):
             s.sendall(b"POST /step HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\n"
                       b"Content-Length: 1000\r\n\r\n{\"a\":")
         s.setblocking(False)
@@ -182,9 +183,9 @@ def _watch(port: int, socks: dict, seconds: float) -> tuple:
     start, closed_at, got, health, n = time.monotonic(), {}, {}, [], 0
     while len(closed_at) < len(socks) and time.monotonic() - start < seconds:
         for s in (s for s in socks if s not in closed_at):
-            if socks[s] == "trickle":
+            if socks[s] in ("trickle", "slow_body"):
                 with contextlib.suppress(OSError):
-                    s.send(TRICKLE[n % len(TRICKLE):n % len(TRICKLE) + 1])
+                    s.send(TRICKLE[n % len(TRICKLE):n % len(TRICKLE) + 1] if socks[s] == "trickle" else b" ")
             if _closed(s, got):
                 closed_at[s] = time.monotonic() - OPENED[s]
         n += 1
@@ -197,15 +198,16 @@ def _watch(port: int, socks: dict, seconds: float) -> tuple:
 
 def test_idle_trickling_and_lying_connections_are_closed(port):
     """200 connections that never finish a request: idle (nothing sent), trickling (a byte of a request
-    line every 0.2 s) and lying (Content-Length 1000, 5 bytes sent). All are closed within the request
-    time-out plus slack, the lying ones after a JSON 408; /health answers fast throughout."""
+    line every 0.2 s), lying (Content-Length 1000, 5 bytes sent) and slow bodies (Content-Length 1000, a
+    byte every 0.2 s). All are closed within the request time-out plus slack, those that sent headers
+    after a JSON 408; /health answers fast throughout."""
     socks = _open_stalled(port, 200)
     try:
         closed_at, got, health = _watch(port, socks, REQUEST_TIMEOUT + 8)
         still = [kind for s, kind in socks.items() if s not in closed_at]
         assert not still, f"{len(still)} of 200 still open: {sorted(set(still))}"
         assert min(closed_at.values()) >= REQUEST_TIMEOUT * 0.8  # closed by the time-out, not at once
-        for s in (s for s, kind in socks.items() if kind == "lying"):
+        for s in (s for s, kind in socks.items() if kind in ("lying", "slow_body")):
             head, _, body = got.get(s, b"").partition(b"\r\n\r\n")
             assert head.startswith(b"HTTP/1.1 408") and b"did not arrive within" in body, got.get(s)
         assert max(health) < 1.0, f"/health took up to {max(health):.3f} s"
