@@ -1,4 +1,5 @@
-"""The RL interfaces' speed and faithfulness: `python bench/bench_envs.py [--quick] [--sessions 1,16,64]`.
+"""The RL interfaces' speed and faithfulness: `python bench/bench_envs.py [--quick] [--sessions 1,16,64,256]
+[--ws-sessions 64,256]`.
 
 1. In-process: the same oracle episodes replayed through the simulator itself (`Env.step`, then the
    verifiers) and through the Gymnasium env (`gym.make("adaptbench/Breakfast-v0")`, reset, step), in
@@ -7,6 +8,8 @@
    one kept-alive connection each) play the oracle's actions of distinct (persona, task, seed) episodes;
    steps per second, p50/p99 step latency, errors, and every session's verdicts compared with the same
    episode run in-process (target: 0 errors, 0 mismatches).
+3. The same server through OpenEnv's WebSocket route `/ws`: N concurrent connections (one asyncio task
+   each, OpenEnv's messages), the same measures.
 
 The oracle's actions are computed once, in-process, before timing (`agents.scripted.play`).
 """
@@ -141,6 +144,57 @@ def play_remote(url: str, episode: dict) -> tuple:
         return lat, None, f"{type(exc).__name__}: {exc}"
 
 
+async def play_ws(url: str, episode: dict) -> tuple:
+    """Play one episode over `/ws` with OpenEnv's messages: (per-step latencies, verdicts, error or None)."""
+    import json
+
+    from websockets.asyncio.client import connect
+
+    lat = []
+    try:
+        async with connect(url, max_size=1 << 20, open_timeout=60) as ws:
+            async def call(message: dict) -> dict:
+                await ws.send(json.dumps(message))
+                out = json.loads(await ws.recv())
+                if out["type"] == "error":
+                    raise RuntimeError(out["data"]["message"])
+                return out["data"]
+
+            await call({"type": "reset", "data": {k: episode[k] for k in ("seed", "task", "persona")}})
+            out = {}
+            for a in episode["actions"]:
+                t = time.perf_counter()
+                out = await call({"type": "step", "data": {"text": a}})
+                lat.append(time.perf_counter() - t)
+                if out["done"]:
+                    break
+            verdicts = out["observation"]["info"].get("verdicts") or (await call({"type": "state"})).get("verdicts")
+            await ws.send(json.dumps({"type": "close"}))
+        return lat, verdicts, None
+    except Exception as exc:  # noqa: BLE001 - counted as the session's error
+        return lat, None, f"{type(exc).__name__}: {exc}"
+
+
+def load_ws(url: str, episodes: list, sessions: int, rounds: int) -> dict:
+    """`sessions` WebSocket connections at once (asyncio tasks), each playing `rounds` episodes."""
+    import asyncio
+
+    results = []
+
+    async def worker(k: int):
+        for r in range(rounds):
+            e = episodes[(k + r * sessions) % len(episodes)]
+            lat, verdicts, err = await play_ws(url, e)
+            results.append((lat, err, err is None and verdicts != e["verdicts"]))
+
+    async def main():
+        await asyncio.gather(*(worker(k) for k in range(sessions)))
+
+    t = time.perf_counter()
+    asyncio.run(main())
+    return _figures(results, sessions, time.perf_counter() - t)
+
+
 def load(url: str, episodes: list, sessions: int, rounds: int) -> dict:
     """`sessions` client threads at once, each playing `rounds` episodes (distinct per session)."""
     results, lock = [], threading.Lock()
@@ -158,7 +212,10 @@ def load(url: str, episodes: list, sessions: int, rounds: int) -> dict:
         th.start()
     for th in threads:
         th.join()
-    wall = time.perf_counter() - t
+    return _figures(results, sessions, time.perf_counter() - t)
+
+
+def _figures(results: list, sessions: int, wall: float) -> dict:
     lats = sorted(x for lat, _, _ in results for x in lat)
     return {"sessions": sessions, "episodes": len(results), "steps": len(lats), "wall": wall,
             "steps_per_s": len(lats) / wall, "p50_ms": 1e3 * _q(lats, 0.50), "p99_ms": 1e3 * _q(lats, 0.99),
@@ -171,18 +228,21 @@ def _q(xs: list, q: float) -> float:
     return xs[min(len(xs) - 1, int(q * len(xs)))] if xs else float("nan")
 
 
-def bench_server(spec, episodes: list, levels: list, total: int) -> tuple:
-    """Rows for each concurrency level (each plays at least `total` episodes, so that one session's
-    figures rest on as many steps as 64 sessions'), and the raw figures."""
+def bench_server(spec, episodes: list, levels: list, ws_levels: list, total: int) -> tuple:
+    """Rows for each concurrency level over HTTP, then over /ws (each plays at least `total` episodes, so
+    that one session's figures rest on as many steps as 64 sessions'), and the raw figures."""
     port = free_port()
     proc = start_server(spec, port)
     rows, figures = [], []
+    runs = [("HTTP", load, f"http://127.0.0.1:{port}", n) for n in levels]
+    runs += [("WebSocket /ws", load_ws, f"ws://127.0.0.1:{port}/ws", n) for n in ws_levels]
     try:
-        for n in levels:
-            f = load(f"http://127.0.0.1:{port}", episodes, n, -(-total // n))
+        for route, run, url, n in runs:
+            f = run(url, episodes, n, -(-total // n))
+            f["route"] = route
             figures.append(f)
-            rows.append((f"server steps/s, {n} concurrent sessions", f["steps_per_s"], "steps/s", "0 errors",
-                         f"p50 {f['p50_ms']:.2f} ms, p99 {f['p99_ms']:.2f} ms, {f['episodes']} episodes, "
+            rows.append((f"server steps/s, {route}, {n} concurrent sessions", f["steps_per_s"], "steps/s",
+                         "0 errors", f"p50 {f['p50_ms']:.2f} ms, p99 {f['p99_ms']:.2f} ms, {f['episodes']} episodes, "
                          f"{f['errors']} errors, {f['mismatches']} verdict mismatches"))
     finally:
         proc.terminate()
@@ -194,20 +254,25 @@ def main() -> int:
     """Run the benchmark and print its rows; exit 1 on any server error or verdict mismatch."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="fewer episodes (CI)")
-    parser.add_argument("--sessions", default="1,16,64", help="concurrency levels (default 1,16,64)")
+    parser.add_argument("--sessions", default="1,16,64,256", help="HTTP concurrency levels (default 1,16,64,256)")
+    parser.add_argument("--ws-sessions", default="64,256", help="WebSocket concurrency levels (default 64,256)")
     parser.add_argument("--spec", default=str(SPEC), help="spec directory")
     args = parser.parse_args()
     from adaptbench.compiler import load_domain
 
     domain = load_domain(args.spec)
-    levels = [int(x) for x in args.sessions.split(",")]
-    episodes = oracle_episodes(domain, 8 if args.quick else max(levels))
+    levels = [int(x) for x in args.sessions.split(",") if x]
+    ws_levels = [int(x) for x in args.ws_sessions.split(",") if x]
+    if args.quick and args.sessions == parser.get_default("sessions"):
+        levels = [1, 16, 64]  # CI: 256 sessions only through /ws (one episode each)
+    episodes = oracle_episodes(domain, 8 if args.quick else max(levels + ws_levels))
     rows = bench_inprocess(domain, episodes, 10 if args.quick else 20)
-    server_rows, figures = bench_server(args.spec, episodes, levels, len(episodes) if args.quick else 2 * len(episodes))
+    server_rows, figures = bench_server(args.spec, episodes, levels, ws_levels,
+                                        len(episodes) if args.quick else 2 * len(episodes))
     report(rows + server_rows)
     bad = [f for f in figures if f["errors"] or f["mismatches"]]
     for f in bad:
-        print(f"FAIL at {f['sessions']} sessions: {f['errors']} errors {f['error_samples']}, "
+        print(f"FAIL at {f['sessions']} sessions ({f['route']}): {f['errors']} errors {f['error_samples']}, "
               f"{f['mismatches']} mismatches", file=sys.stderr)
     return 1 if bad else 0
 

@@ -2,9 +2,12 @@
 `adapt rollout` runs: same spec, seeds, offline user and verifiers).
 
 - `envs.gym`: Gymnasium, `adaptbench/Breakfast-v0` (registered on import when gymnasium is installed)
-- `envs.server` / `envs.client`: the HTTP server (`adapt serve-env`) with OpenEnv-style routes, and its client
+- `envs.server` / `envs.client`: the server (`adapt serve-env`): OpenEnv's WebSocket protocol at `/ws`
+  (`envs.websocket`) and HTTP routes, requests checked by `envs.wire`, stalled connections closed by
+  `envs.connections`; and its HTTP client
 - `envs.trl`: an environment class for TRL's `GRPOTrainer(environment_factory=...)` (`adapt train grpo`)
-- `envs.verifiers_env`: `load_environment()` for the `verifiers` library
+- `envs.verifiers_env`: `load_environment()` for the `verifiers` library (`vf-eval adapt_breakfast`);
+  `envs.sse_relay` ends a local server's streams with `data: [DONE]` for it
 
 docs/environments.md has a runnable example of each and the reward definitions.
 """

@@ -1,4 +1,6 @@
-"""A client for `adapt serve-env` (standard library only: one kept-alive HTTP connection per client).
+"""A client for `adapt serve-env`'s HTTP routes (standard library only: one kept-alive HTTP connection per
+client). The server makes the session's id and secret at reset; the client sends both with every call.
+OpenEnv's own clients (`openenv.core.GenericEnvClient`) speak to the same server over `/ws`.
 
     with EnvClient("http://127.0.0.1:8000") as env:
         out = env.reset(seed=3, task="eggs", persona="juan")
@@ -33,6 +35,7 @@ class EnvClient:
             raise ValueError(f"expected an http://HOST:PORT address, got '{base_url}'")
         self.host, self.port, self.timeout = url.hostname, url.port or 80, timeout
         self.session_id: str | None = None
+        self.secret: str | None = None
         self._conn: http.client.HTTPConnection | None = None
 
     def request(self, method: str, path: str, body: dict | None = None) -> dict:
@@ -57,32 +60,34 @@ class EnvClient:
         return out
 
     def reset(self, **options) -> dict:
-        """Open (or restart) this client's session: seed, task, persona, reward, max_steps, prior."""
-        if self.session_id is not None:
-            options.setdefault("session_id", self.session_id)
-        out = self.request("POST", "/reset", options)
-        self.session_id = out["session_id"]
+        """Open a new session for this client (its previous one, if any, is closed by the same request):
+        seed, task, persona, reward, max_steps, prior."""
+        out = self.request("POST", "/reset", {**options, **self._credentials(required=False)})
+        self.session_id, self.secret = out["session_id"], out["secret"]
         return out
 
     def step(self, action: str) -> dict:
         """Take one action in this client's session."""
-        return self.request("POST", "/step", {"session_id": self._sid(), "action": {"text": action}})
+        return self.request("POST", "/step", {**self._credentials(), "action": {"text": action}})
 
     def state(self) -> dict:
         """The session's state (verdicts once the episode is over)."""
-        return self.request("POST", "/state", {"session_id": self._sid()})
+        return self.request("POST", "/state", self._credentials())
 
     def health(self) -> dict:
         """The server's health line (open sessions)."""
         return self.request("GET", "/health")
 
     def close(self) -> None:
-        """End the session on the server and the connection."""
+        """End the session on the server (one that already expired is fine) and the connection."""
         try:
             if self.session_id is not None:
-                self.request("POST", "/close", {"session_id": self.session_id})
+                self.request("POST", "/close", self._credentials())
+        except EnvServerError as exc:
+            if exc.status != 404:
+                raise
         finally:
-            self.session_id = None
+            self.session_id = self.secret = None
             self._drop()
 
     def __enter__(self) -> EnvClient:
@@ -91,10 +96,12 @@ class EnvClient:
     def __exit__(self, *exc) -> None:
         self.close()
 
-    def _sid(self) -> str:
+    def _credentials(self, required: bool = True) -> dict:
         if self.session_id is None:
-            raise RuntimeError("call reset() first")
-        return self.session_id
+            if required:
+                raise RuntimeError("call reset() first")
+            return {}
+        return {"session_id": self.session_id, "secret": self.secret}
 
     def _connection(self) -> http.client.HTTPConnection:
         if self._conn is None:

@@ -1,7 +1,15 @@
 """ADAPT for the `verifiers` library (0.4, `verifiers.v1`): a taskset of episodes and an Env in which the
 simulator plays the user side: each assistant reply is one action (text, exactly as `adapt replay`
 reads it), the observation comes back as the next user turn, and the verifiers' satisfaction rate is the
-episode's reward (`satisfaction_rate`, weight 1; `preferences_satisfied`, `questions` as metrics in info).
+episode's reward (`satisfaction_rate`, weight 1). Metrics recorded on the trace (`trace.metrics`, which
+`vf-eval` averages): `preferences_satisfied`, `preferences_violated`, `questions` (questions asked),
+`steps` (actions taken), `invalid_actions` (steps the simulator refused), `completed` (1 when the
+assistant declared done, 0 when the step limit or the turn limit ended the episode).
+
+The assistant is a plain chat model: its harness defaults to verifiers' tool-less `null` harness in a
+local `subprocess` runtime (verifiers' own default is a bash agent in a hosted sandbox, which a text
+game has no use for). The runtime runs verifiers' chat program through `uv` (the `verifiers` extra
+installs it).
 
     from adaptbench.envs.verifiers_env import load_environment
     env = load_environment()                    # spec, personas, tasks, seeds as keyword arguments
@@ -35,8 +43,18 @@ async def play_episode(session: Session, first_turn, next_turn) -> dict:
             break
         segment = await next_turn(out.observation)
     ev = session.evaluation()
+    trace = session.env.world.trace
     return {"reward": ev.satisfaction_rate or 0.0, "satisfied": ev.satisfied, "violated": ev.violated,
-            "questions": ev.questions, "steps": session.env.world.step, "verdicts": ev.as_dict()}
+            "questions": ev.questions, "steps": session.env.world.step, "verdicts": ev.as_dict(),
+            "invalid_actions": sum(1 for e in trace if not e.ok),
+            "completed": int(session.env.world.done)}
+
+
+def metrics(outcome: dict) -> dict:
+    """The episode's metrics as verifiers records them (numbers, by name)."""
+    return {"preferences_satisfied": outcome["satisfied"], "preferences_violated": outcome["violated"],
+            "questions": outcome["questions"], "steps": outcome["steps"],
+            "invalid_actions": outcome["invalid_actions"], "completed": outcome["completed"]}
 
 
 def episodes(domain, personas=None, tasks=None, seeds=(0,)) -> list:
@@ -69,9 +87,9 @@ if vf is not None:
         """One ADAPT episode."""
 
     class AdaptEnvConfig(vf.EnvConfig):
-        """The one agent role: the assistant."""
+        """The one agent role: the assistant, a chat model (the tool-less `null` harness, run locally)."""
 
-        assistant: vf.AgentConfig = vf.AgentConfig()
+        assistant: vf.AgentConfig = vf.AgentConfig(harness={"id": "null"}, runtime={"type": "subprocess"})
 
     class AdaptTaskset(vf.Taskset[AdaptTask, AdaptTasksetConfig]):
         """Every (persona, task, seed) of the config, the opening observation as the prompt."""
@@ -103,6 +121,7 @@ if vf is not None:
                 outcome = await play_episode(session, interaction.turn, interaction.turn)
             trace = interaction.trace
             trace.record_reward("satisfaction_rate", outcome["reward"], 1.0)
+            trace.record_metrics(metrics(outcome))
             trace.info["adapt"] = {k: outcome[k] for k in ("satisfied", "violated", "questions", "steps")}
             trace.info["verdicts"] = outcome["verdicts"]
 
