@@ -4,8 +4,6 @@ the preference the teacher named (the word-overlap topic when it named none)."""
 
 from __future__ import annotations
 
-import pytest
-
 from adaptbench.training.dataset import PairStore
 from adaptbench.training.relabel import Proposal
 
@@ -95,13 +93,13 @@ def test_reflection_prompt_carries_the_reason_and_no_example_question(domain):
     assert 'Ask "' not in tail  # no example question for a small student to copy
 
 
-@pytest.mark.parametrize("persona", ["ron", "sarah"])
-def test_every_preference_question_is_answered_from_its_preference(domain, persona):
+def test_every_preference_question_is_answered_from_its_preference(domain):
     from adaptbench.agents.users import OfflineUser
     from adaptbench.compiler.lint import applies_to
     from adaptbench.training.relabel import preference_question
 
-    for pref in domain.persona[persona].preferences:
-        task = next((t for t in domain.tasks if applies_to(domain, pref, t)), None)
-        user = OfflineUser(domain, domain.persona[persona], task)
-        assert pref.id in user.targets(preference_question(pref)[5:-1]), pref.id
+    for persona in domain.personas:
+        for pref in persona.preferences:
+            task = next((t for t in domain.tasks if applies_to(domain, pref, t)), None)
+            user = OfflineUser(domain, persona, task)
+            assert pref.id in user.targets(preference_question(pref)[5:-1]), (persona.id, pref.id)
