@@ -59,7 +59,8 @@ def test_golden_persona_and_reflection(domain, golden):
     check_roles(msgs)
     golden(GOLDEN / "persona.txt", as_text(msgs))
     refl = reflection_messages(PromptBuilder(domain, "planner"), ep.view(), "Declare Done",
-                               "Pour whole_milk from milk_0 to bowl_0", made_after)
+                               "Pour whole_milk from milk_0 to bowl_0", made_after,
+                               "Since Juan prefers whole milk, my next step is Pour whole_milk from milk_0 to bowl_0.")
     check_roles(refl)
     golden(GOLDEN / "reflection.txt", as_text(refl))
 

@@ -105,6 +105,18 @@ class Executor:
         self.taken: set = set()
         self.resolved: dict = {}
         self.vessels: dict = {}  # movable entity -> the choice that claimed it (plates, cups, pans)
+        self.context: list = []  # the (choice key, value) pairs the action being built realises
+        self.serves: tuple = ()  # those of the last action yielded
+
+    def within(self, pairs, steps):
+        """Run the generator `steps` with (choice key, value) `pairs` in context: every action it yields
+        realises them (`serves`)."""
+        pairs = list(pairs)
+        self.context.extend(pairs)
+        try:
+            return (yield from steps)
+        finally:
+            del self.context[len(self.context) - len(pairs):]
 
     def steps(self):
         """Every recipe of the plan in order, each served as it is finished, then Declare Done."""
@@ -114,7 +126,9 @@ class Executor:
         yield from self.act("Declare Done")
 
     def act(self, text: str):
-        """Take one action; True on success (what the agent has seen is refreshed from the feedback)."""
+        """Take one action; True on success (what the agent has seen is refreshed from the feedback).
+        `serves` holds the (choice key, value) pairs in context while it is out."""
+        self.serves = tuple(dict.fromkeys(self.context))
         feedback = yield text
         self.seen = feedback.seen
         return feedback.ok
@@ -162,7 +176,7 @@ class Executor:
     def value(self, recipe: Recipe, name: str):
         """The resolved value of a choice (single: first usable of chosen + fallbacks; multi: usable subset)."""
         choice = recipe.choice.get(name)
-        key = f"{recipe.id}.{name}" if choice else f"{PLAN}.{name}"
+        key = self.key(recipe, name)
         if key in self.resolved:
             return self.resolved[key]
         choice = choice or {c.id: c for c in self.domain.planning}[name]
@@ -171,7 +185,7 @@ class Executor:
         if choice.multi:
             out = []
             for v in chosen:
-                if v == "none" or (yield from self.usable(v, needs.get(v, ()))):
+                if v == "none" or (yield from self.within([(key, v)], self.usable(v, needs.get(v, ())))):
                     out.append(v)
             out = tuple(out)
         else:
@@ -180,13 +194,17 @@ class Executor:
                      if not (exclusive and not self._reusable(v) and self.vessels.get(v, key) != key)]
             out = chosen
             for v in order:
-                if v == "none" or (yield from self.usable(v, needs.get(v, ()))):
+                if v == "none" or (yield from self.within([(key, v)], self.usable(v, needs.get(v, ())))):
                     out = v
                     break
             if exclusive and self._movable(out):
                 self.vessels[out] = key
         self.resolved[key] = out
         return out
+
+    def key(self, recipe: Recipe, name: str) -> str:
+        """The assignment key of a recipe's variable: `recipe.choice`, or `plan.choice` for a planning one."""
+        return f"{recipe.id}.{name}" if name in recipe.choice else f"{PLAN}.{name}"
 
     def _reusable(self, value: str) -> bool:
         """Cookware is emptied onto a plate before the next recipe runs, so recipes may share a pan."""
@@ -211,8 +229,9 @@ class Executor:
         yield from self.run_steps(recipe, recipe.steps, {})
         vessel = yield from self.value(recipe, recipe.serve)
         place = yield from self.value(recipe, "place")
-        if (yield from self.find(vessel)) and self.seen.holds_food(vessel):
-            yield from self.act(f"Move {vessel} to {place}")
+        serving = [(self.key(recipe, recipe.serve), vessel), (self.key(recipe, "place"), place)]
+        if (yield from self.within(serving, self.find(vessel))) and self.seen.holds_food(vessel):
+            yield from self.within(serving, self.act(f"Move {vessel} to {place}"))
 
     def _chosen(self, recipe: Recipe, choice) -> bool:
         return bool(self.assignment.get(f"{recipe.id}.{choice.id}", choice.default))
@@ -225,9 +244,12 @@ class Executor:
             elif s.kind == "for":
                 for item in (yield from self.value(recipe, s.over)):
                     if item != "none":
-                        yield from self.run_steps(recipe, s.body, {**env_vars, "item": item})
+                        yield from self.within([(self.key(recipe, s.over), item)],
+                                               self.run_steps(recipe, s.body, {**env_vars, "item": item}))
             elif (yield from self._all_hold(recipe, s.cond)):
-                yield from self.run_steps(recipe, s.body, env_vars)
+                held = [(self.key(recipe, name), v) for name, _ in s.cond
+                        for v in _values(self.resolved.get(self.key(recipe, name)))]
+                yield from self.within(held, self.run_steps(recipe, s.body, env_vars))
 
     def _all_hold(self, recipe: Recipe, cond):
         for name, vals in cond:
@@ -246,20 +268,22 @@ class Executor:
 
     def run_template(self, recipe: Recipe, text: str, env_vars: dict):
         """Fill a template's variables, left to right, and run it (ADD expands to Pour/Move)."""
-        parts, last = [], 0
+        parts, last, used = [], 0, []
         for m in _VAR.finditer(text):
             name = m.group(2)
             value = env_vars[name] if name in env_vars else (yield from self.value(recipe, name))
+            if name not in env_vars:
+                used += [(self.key(recipe, name), v) for v in _values(value)]
             if m.group(1):
-                value = yield from self.holder(value)
+                value = yield from self.within(used, self.holder(value))
             parts += [text[last:m.start()], value]
             last = m.end()
         filled = "".join(parts) + text[last:]
         m = _ADD.match(filled)
         if m:
-            yield from self.add(m.group(1), m.group(2))
+            yield from self.within(used, self.add(m.group(1), m.group(2)))
         elif filled and "None" not in filled:
-            yield from self.act(filled)
+            yield from self.within(used, self.act(filled))
 
     def holder(self, substance: str):
         """A known container holding a substance (finding it first)."""
@@ -293,6 +317,13 @@ class Executor:
             if seen.category(e) == category and e not in self.taken and seen.parent(e) != vessel:
                 return e
         return None
+
+
+def _values(value) -> tuple:
+    """A resolved choice value as a tuple of values (a multi choice's tuple, or the single value)."""
+    if value is None:
+        return ()
+    return tuple(value) if isinstance(value, tuple) else (value,)
 
 
 @dataclass(frozen=True)

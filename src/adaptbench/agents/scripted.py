@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import re
 from abc import abstractmethod
+from collections import Counter
 
 from ..compiler import ast as A
 from ..compiler.lint import applies_to
@@ -26,7 +27,17 @@ from ..compiler.model import Choice, CompiledDomain, Persona, Task
 from ..harness.policy import Decision, Policy, View
 from ..runtime.env import Env
 from ..runtime.users import words
-from .plans import PLAN, Executor, all_recipes, choice_points, defaults, execute, feedback, task_recipes
+from .plans import (
+    PLAN,
+    Executor,
+    Feedback,
+    all_recipes,
+    choice_points,
+    defaults,
+    execute,
+    feedback,
+    task_recipes,
+)
 
 AGENTS = ("oracle", "never-ask", "always-ask", "oracle-ask")
 
@@ -215,20 +226,42 @@ class Oracle:
         self.simulations = 0
         self._scores: dict = {}
 
-    def score(self, assignment: dict) -> float:
-        """satisfied - 2 x violated (+ half the progress of violated ones) of a plan, simulated."""
+    def evaluation(self, assignment: dict):
+        """The verdicts of a plan, simulated (one evaluation per distinct trace of actions)."""
         env = Env(self.domain, task=self.task.id, persona=self.persona, seed=self.seed, full_scene=self.full)
         env.reset()
         execute(env, assignment)
         self.simulations += 1
         trace = tuple(e.text for e in env.world.trace)
         if trace not in self._scores:  # different choices often end in the same actions
-            ev = env.evaluate()
-            near = sum(v.progress for v in ev.verdicts if v.verdict == "violated")
-            # a violation costs more than a satisfied preference gains: adding honey to satisfy a sweet-only
-            # rule must not pay for breaking "butter only on toast" (toast with honey is sweet)
-            self._scores[trace] = ev.satisfied - 2 * ev.violated + 0.5 * near
+            self._scores[trace] = env.evaluate()
         return self._scores[trace]
+
+    def score(self, assignment: dict) -> float:
+        """satisfied - 2 x violated (+ half the progress of violated ones) of a plan, simulated."""
+        ev = self.evaluation(assignment)
+        near = sum(v.progress for v in ev.verdicts if v.verdict == "violated")
+        # a violation costs more than a satisfied preference gains: adding honey to satisfy a sweet-only
+        # rule must not pay for breaking "butter only on toast" (toast with honey is sweet)
+        return ev.satisfied - 2 * ev.violated + 0.5 * near
+
+    def reasons(self, plan: dict) -> dict:
+        """(choice key, value) -> the ids of the preferences that made `plan` choose that value over the
+        default: those whose verdict is worse in the plan without it (a single choice back at its default,
+        a multi choice without that item). Only the values the plan departs from the defaults with; a
+        value that serves no preference maps to ()."""
+        base = _standing(self.evaluation(plan))
+        out = {}
+        for key, choice in choice_points(self.domain, all_recipes(self.domain, self.task)):
+            if key not in plan or not self._active(key, choice, plan):
+                continue
+            if choice.multi:
+                alts = {v: tuple(x for x in plan[key] if x != v) for v in plan[key] if v not in choice.default}
+            else:
+                alts = {plan[key]: choice.default[0]} if plan[key] != choice.default[0] else {}
+            for v, alt in alts.items():
+                out[(key, v)] = _worse(base, _standing(self.evaluation({**plan, key: alt})))
+        return out
 
     def search(self) -> dict:
         """The best assignment found."""
@@ -296,6 +329,19 @@ class Oracle:
                 yield cand
 
 
+_RANK = {"violated": 0, "inapplicable": 1, "satisfied": 2}
+
+
+def _standing(ev) -> dict:
+    """Preference id -> (verdict rank, progress): how well an evaluation treats each preference."""
+    return {v.id: (_RANK[v.verdict], v.progress if v.verdict == "violated" else 0.0) for v in ev.verdicts}
+
+
+def _worse(base: dict, other: dict) -> tuple:
+    """The ids (in the persona's order) that `other` treats worse than `base`."""
+    return tuple(pid for pid, s in base.items() if other.get(pid, s) < s)
+
+
 def _category(domain: CompiledDomain, value: str) -> str:
     """The family an option is swapped within: the first of the engine's `swap_families` (cereal, fruit,
     sweetener ...) it has, or its category."""
@@ -335,22 +381,69 @@ class OraclePolicy(ScriptedPolicy):
     def __init__(self, domain: CompiledDomain):
         super().__init__(domain)
         self._plans: dict = {}
+        self._oracles: dict = {}
+        self._reasons: dict = {}
 
     def start(self, episode: str, env) -> None:
         """Search the plan (privileged: reads the persona and simulates the scene)."""
         self._runs.pop(episode, None)
-        oracle = Oracle(env.domain, env.task, env.persona, env.scene.seed, env.scene.full)
+        self._reasons.pop(episode, None)
+        oracle = self._oracles[episode] = Oracle(env.domain, env.task, env.persona, env.scene.seed, env.scene.full)
         self._plans[episode] = oracle.search()
+
+    def executor(self, view: View) -> Executor:
+        """An executor of the plan found at `start`, from the view's known world."""
+        return Executor(self.domain, self.domain.task[view.task], self._plans[view.episode], view.seen)
 
     def plan(self, view: View):
         """Carry out the plan found at `start`."""
-        task = self.domain.task[view.task]
-        return Executor(self.domain, task, self._plans[view.episode], view.seen).steps()
+        return self.executor(view).steps()
+
+    def proposal(self, view: View) -> tuple:
+        """(the plan's next action from the view's state, the ids of the preferences it serves).
+
+        The action: the plan re-executed from the view's known world, passing over each action the
+        agent has already taken with success (the same action up to instance numbers and a move's
+        source, `_effect`): what is left of the plan in the state the agent reached.
+        The preferences: those that decided the choices the action realises (`Oracle.reasons`); () for
+        an action that realises no departure from the defaults (a plain cooking step, a default choice)."""
+        ex = self.executor(view)
+        done = Counter(_effect(t.action) for t in view.history if t.ok)
+        steps, fb = ex.steps(), Feedback(True, "", view.seen)
+        try:
+            action = next(steps)
+            while action != "Declare Done" and done[_effect(action)] > 0:
+                done[_effect(action)] -= 1
+                action = steps.send(fb)
+        except StopIteration:
+            return "Declare Done", ()
+        return action, self.preferences(view.episode, ex.serves)
+
+    def preferences(self, episode: str, serves) -> tuple:
+        """The ids of the preferences behind (choice key, value) pairs of an episode's plan, in order."""
+        if episode not in self._reasons:  # computed on first use: rollouts never pay for it
+            self._reasons[episode] = self._oracles[episode].reasons(self._plans[episode])
+        reasons = self._reasons[episode]
+        return tuple(dict.fromkeys(pid for kv in serves for pid in reasons.get(kv, ())))
 
     def end(self, episode: str) -> None:
         """Forget a finished episode's plan."""
         super().end(episode)
-        self._plans.pop(episode, None)
+        for d in (self._plans, self._oracles, self._reasons):
+            d.pop(episode, None)
+
+
+_SOURCE = re.compile(r"^(Move|Pour) (\S+) from \S+ (to|into) ")
+
+
+_INSTANCE = re.compile(r"_\d+\b")
+
+
+def _effect(action: str) -> str:
+    """What an action does, for matching a plan's steps against the agent's: its text with instance
+    numbers dropped (`egg_0` and `egg_2` are both an egg) and without the source of a `Move X from Y to
+    Z` / `Pour X from Y into Z` (where an item came from does not change what the step did)."""
+    return _INSTANCE.sub("", _SOURCE.sub(r"\1 \2 \3 ", action.strip()))
 
 
 class OracleAskPolicy(OraclePolicy):

@@ -153,11 +153,15 @@ def persona_messages(user: str, task: str, preferences, state: str, dialogue=(),
     return tuple(msgs)
 
 
-def reflection_messages(builder: PromptBuilder, view, student: str, teacher: str, made_after=()) -> tuple:
+def reflection_messages(builder: PromptBuilder, view, student: str, teacher: str, made_after=(),
+                        reason: str | None = None) -> tuple:
     """The reflection prompt: its system message, the student's history, and the question what the
-    robot could have asked to predict the teacher's action."""
+    robot could have asked to predict the teacher's action. `reason` is the teacher's thought ("Since
+    Ron prefers ..."), shown as the paper's prompt shows it: "because if the robot knew the user better,
+    it would have thought that '<reason>'"."""
     history = builder.messages(view, made_after=made_after)[1:]
     system = fill("reflection_system", user=builder.user, task=view.task_text, layout=view.layout)
     last = dict(history[-1])
-    last["content"] += "\n\n" + fill("reflection", student=student, teacher=teacher)
+    last["content"] += "\n\n" + fill("reflection", student=student, teacher=teacher, user=builder.user,
+                                      reason=reason or "")
     return ({"role": "system", "content": system}, *history[:-1], last)

@@ -36,8 +36,11 @@ from .decide import EPS1, EPS2, decide
 from .ids import rejected_turn_ids
 from .prior import prior_summary
 from .relabel import (
+    Proposal,
     ScriptedTeacher,
     answered_prompt,
+    preference_question,
+    proposals,
     question_text,
     reflection_request,
     topic_question,
@@ -94,6 +97,7 @@ class _Run:
     prior: str = ""
     failures: int = 0
     made_after: list = field(default_factory=list)
+    proposal: Proposal | None = None  # the teacher's at the step being considered (a^t, preferences, reason)
 
 
 def units(settings: DataSettings) -> list:
@@ -185,10 +189,11 @@ class Builder:
 
     def _consider(self, todo: list) -> None:
         t0 = time.perf_counter()
-        acts = self.teacher.actions([v for _, v, _ in todo])
+        props = proposals(self.teacher, [v for _, v, _ in todo])
         self.times.add("teacher", t0)
         asks = []
-        for (r, v, d), a_t in zip(todo, acts, strict=True):
+        for (r, v, d), prop in zip(todo, props, strict=True):
+            r.proposal, a_t = prop, prop.action
             reason = self._skip(r, d.action, a_t)
             if reason:
                 self.store.append(self._row(r, v, d, a_t, None, reason))
@@ -207,13 +212,22 @@ class Builder:
     def _reflect(self, asks: list) -> list:
         t0 = time.perf_counter()
         if self.s.questions == "topics":
-            out = [topic_question(self.topics, a_t, v.task_text) for _, v, _, a_t in asks]
+            out = [self._topic_question(r, v, a_t) for r, v, _, a_t in asks]
         else:
-            reqs = [replace(reflection_request(self.student, v, d.action, a_t, tuple(r.made_after)),
+            reqs = [replace(reflection_request(self.student, v, d.action, a_t, tuple(r.made_after), r.proposal.reason),
                             key=sample_key(v, "reflection")) for r, v, d, a_t in asks]  # the episode's own stream
             out = [c.text.strip() for c in self.student.backend.generate(reqs)] if reqs else []
         self.times.add("reflection", t0)
         return out
+
+    def _topic_question(self, r: _Run, view, a_t: str) -> str:
+        """The topic proposer: a question about the first preference the teacher named, else the topic
+        sharing most words with a^t."""
+        named = r.proposal.preferences
+        if named:
+            persona = r.episode.env.persona
+            return preference_question(next(p for p in persona.preferences if p.id == named[0]))
+        return topic_question(self.topics, a_t, view.task_text)
 
     def _row(self, r: _Run, view, decision, a_t: str, q: str | None, reason: str | None) -> dict:
         tok = self.student.backend.tokenizer
@@ -271,7 +285,8 @@ class Builder:
             "spec_hash": self.domain.spec_hash, "split": self.s.split, "persona": r.job.persona,
             "task": r.job.task, "seed": r.job.seed, "interaction": r.interaction, "step": view.step,
             "prior": r.prior, "student_model": self.model_name, "teacher": self.teacher.name,
-            "teacher_model": self.teacher.model}
+            "teacher_model": self.teacher.model, "teacher_preferences": list(r.proposal.preferences),
+            "teacher_reason": r.proposal.reason}
 
 
 def opening_tokens(domain, student, settings: DataSettings) -> int:

@@ -19,7 +19,7 @@ FIELDS = ("prompt", "chosen", "rejected", "kind", "skip_reason", "teacher_action
           "answer", "question_source", "p_teacher", "p_teacher_given_answer", "p_student", "delta_q", "delta_t",
           "eps1", "eps2", "prompt_tokens", "truncated", "spec_hash", "split", "persona", "task", "seed",
           "interaction", "step", "prior", "student_model", "teacher", "teacher_model", "rejected_token_ids",
-          "rejected_canonical", "score_dtype")
+          "rejected_canonical", "score_dtype", "teacher_preferences", "teacher_reason")
 
 
 def row_key(row: dict) -> tuple:
