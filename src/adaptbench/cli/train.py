@@ -89,12 +89,12 @@ def _cmd_data(args) -> int:
 
     domain = load_domain(args.spec)
     split, personas, tasks, seeds = _selection(args, domain)
+    store = PairStore(args.out, skip_bad=args.skip_bad_rows)  # its lines checked before any model loads
     backend = TransformersBackend(args.student, device=args.device, batch_size=args.batch,
                                   temperature=args.temperature, seed=args.sample_seed)
     teacher = _teacher(args, domain, backend)
     settings = DataSettings(split, personas, tasks, seeds, args.interactions, args.questions, args.eps1, args.eps2,
                             args.max_length, args.batch, _workers(args.workers), args.max_steps)
-    store = PairStore(args.out)
 
     def make_builder(sink):
         return Builder(domain, student_policy(backend, domain), settings, sink, args.student, teacher)
@@ -154,6 +154,9 @@ def add_data(train_sub) -> None:
                    "models and --batch episodes in flight (default 1; at most the CPU cores)")
     p.add_argument("--max-steps", type=positive, help="step budget per episode (default 50, as in adapt rollout)")
     p.add_argument("--device", default="cpu")
+    p.add_argument("--skip-bad-rows", action="store_true", help="on a rerun, leave out the lines of OUT/pairs.jsonl "
+                   "that are not rows (moved to pairs.jsonl.bad, counted and reported; their steps made again) "
+                   "instead of stopping at the first (exit 2, naming its file:line)")
     from .model import add_sampling_options
 
     add_sampling_options(p, "")  # the student's actions and reflection questions

@@ -56,8 +56,9 @@ def _cmd(method: str):
         last = r.get("last", {})
         figures = ", ".join(f"{k.split('/')[-1]} {last[k]:.4g}" for k in ("loss", "rewards/margins",
                                                                          "rewards/accuracies") if k in last)
+        pace = f"{r['seconds_per_step']:.3f} s/step" if r.get("seconds_per_step") else "no step run now"
         print(f"{method}: {r['steps']} steps on {r['rows']} rows ({figures}); "
-              f"{r['seconds_per_step'] or 0:.3f} s/step; adapter in {Path(s.out) / 'adapter'}, merged model in "
+              f"{pace}; adapter in {Path(s.out) / 'adapter'}, merged model in "
               f"{Path(s.out) / 'merged'} (use it as --model)")
         return 0
 

@@ -64,6 +64,9 @@ class TrainSettings:
                              str, ("auto", "float32", "bfloat16"))
     gradient_checkpointing: bool = setting(False, "recompute activations in the backward pass (less memory)", bool)
     threads: int = setting(None, "CPU threads for torch (default: torch's)", int)
+    skip_bad_rows: bool = setting(False, "leave out the --data lines that are not usable rows (counted, reported "
+                                         "and recorded in train.json) instead of stopping at the first (exit 2, "
+                                         "naming its file:line)", bool)
 
     def check(self) -> None:
         """SettingsError on a value out of range."""

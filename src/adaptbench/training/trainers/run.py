@@ -13,6 +13,8 @@ steps, losses, reward margins, seconds per step).
 from __future__ import annotations
 
 import json
+import math
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -20,7 +22,7 @@ from ...errors import AdaptError
 from .config import as_dict
 from .encode import Encoder, check_lengths, key_text
 
-RESUMABLE = ("max_steps", "epochs", "save_steps", "logging_steps", "threads", "long_rows", "out")
+RESUMABLE = ("max_steps", "epochs", "save_steps", "logging_steps", "threads", "long_rows", "out", "skip_bad_rows")
 
 
 class TrainError(AdaptError):
@@ -48,9 +50,19 @@ def load_tokenizer(model: str):
     return tok
 
 
-def prepare(method: str, s, tokenizer, spec=None) -> Prepared:
-    """The method's rows from `s.data`, every one length-checked against `s.max_length` (`spec`: the spec
-    directory STaR-GATE replays its rollouts in)."""
+def vocabulary(model: str, tokenizer) -> int:
+    """The ids the model embeds (its config's `vocab_size`; the tokenizer's size when it has none)."""
+    try:
+        size = json.loads((Path(model) / "config.json").read_text()).get("vocab_size")
+    except (OSError, ValueError, AttributeError):
+        size = None
+    return size if isinstance(size, int) and size > 0 else len(tokenizer)
+
+
+def prepare(method: str, s, tokenizer, spec=None, log=None) -> Prepared:
+    """The method's rows from `s.data`, every line checked (a bad one stops the run naming its file:line,
+    unless `s.skip_bad_rows`) and every row length-checked against `s.max_length` (`spec`: the spec
+    directory STaR-GATE replays its rollouts in; `log`: where skipped rows are reported)."""
     from . import rows as R
 
     enc = Encoder(tokenizer)
@@ -59,7 +71,7 @@ def prepare(method: str, s, tokenizer, spec=None) -> Prepared:
         from ...compiler import load_domain
         from .stargate import read_rollouts, split_of, stargate_rows, top_fraction
 
-        records = read_rollouts(s.data, s.agent)
+        records = read_rollouts(s.data, s.agent, s.skip_bad_rows, log)
         kept = top_fraction(records, s.top)
         domain = load_domain(spec)
         try:
@@ -69,7 +81,7 @@ def prepare(method: str, s, tokenizer, spec=None) -> Prepared:
         left = {"rollouts": len(records), "rollouts_kept": len(kept), "rollouts_not_replayable": bad,
                 "split": split_of(domain, records)}
     else:
-        pairs = R.read_pairs(s.data)
+        pairs, bad = R.read_pairs(s.data, vocabulary(s.model, tokenizer), s.skip_bad_rows, log)
         build = {"dpo": R.dpo_rows, "sft": R.sft_rows,
                  "no-reflection": lambda p, e: R.no_reflection_rows(p, e, s.no_gain)}[method]
         try:
@@ -77,7 +89,7 @@ def prepare(method: str, s, tokenizer, spec=None) -> Prepared:
         except (KeyError, TypeError, ValueError) as exc:  # a row without the dataset contract's fields
             raise R.DataError(f"--data {s.data}: a row of pairs.jsonl is malformed ({type(exc).__name__}: "
                               f"{exc}); rebuild it with `adapt train data`") from None
-        left = {"pairs": len(pairs)}
+        left = {"pairs": len(pairs) + bad, "bad_rows_left_out": bad}
     if not encoded:
         raise TrainError(f"--data {s.data}: no rows to train {method} on ({json.dumps(left)})")
     kept, long = check_lengths(encoded, s.max_length)
@@ -126,9 +138,62 @@ def write_settings(s, out: Path) -> None:
     (out / "settings.json").write_text(json.dumps(_recorded(s), indent=2) + "\n")
 
 
+def _state(ckpt: Path) -> dict | None:
+    try:
+        state = json.loads((ckpt / "trainer_state.json").read_text())
+    except (OSError, ValueError):
+        return None
+    return state if isinstance(state, dict) and isinstance(state.get("global_step"), int) else None
+
+
 def last_checkpoint(out: Path) -> str | None:
-    """The newest complete checkpoint under OUT/checkpoints (its trainer state written), or None."""
+    """The newest complete checkpoint under OUT/checkpoints (its trainer state written whole), or None."""
     root = out / "checkpoints"
-    done = [p for p in root.glob("checkpoint-*") if (p / "trainer_state.json").is_file()
-            and p.name.split("-")[-1].isdigit()]
+    done = [p for p in root.glob("checkpoint-*") if p.name.split("-")[-1].isdigit() and _state(p) is not None]
     return str(max(done, key=lambda p: int(p.name.split("-")[-1]))) if done else None
+
+
+def checkpoint_step(checkpoint: str | None) -> int:
+    """The optimizer steps a checkpoint holds (0 for none)."""
+    return _state(Path(checkpoint))["global_step"] if checkpoint else 0
+
+
+def finished(s, out: Path) -> dict | None:
+    """OUT/train.json's content when OUT holds a finished run that reached the steps `s` asks for (its
+    `--max-steps`, or its epochs over the rows the run trained on), else None. train.json is written
+    last, after the adapter and the merged model: it marks a run done."""
+    from .engine import steps_per_epoch
+
+    try:
+        result = json.loads((out / "train.json").read_text())
+        steps, rows = result["steps"], result["rows"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    planned = s.max_steps or math.ceil(s.epochs * steps_per_epoch(s, rows))
+    return result if steps >= planned else None
+
+
+def trim_log(out: Path, step: int) -> None:
+    """Keep in OUT/log.jsonl only the lines of steps up to `step` (the checkpoint a run resumes from; 0: none):
+    the steps after it are trained and logged again, once."""
+    path = out / "log.jsonl"
+    if not path.is_file():
+        return
+    keep = []
+    for line in path.read_text(encoding="utf-8", errors="replace").splitlines():
+        try:
+            entry = json.loads(line)
+        except ValueError:
+            continue  # a torn line (a kill mid-write)
+        if isinstance(entry, dict) and isinstance(entry.get("step"), int) and entry["step"] <= step:
+            keep.append(line + "\n")
+    tmp = path.with_name("log.jsonl.tmp")
+    tmp.write_text("".join(keep), encoding="utf-8")
+    os.replace(tmp, path)
+
+
+def write_result(out: Path, result: dict) -> None:
+    """OUT/train.json, written whole or not at all (the run's done-marker)."""
+    tmp = out / "train.json.tmp"
+    tmp.write_text(json.dumps(result, indent=2) + "\n")
+    os.replace(tmp, out / "train.json")
