@@ -80,16 +80,18 @@ def _check_data_args(args) -> None:
 
 def _cmd_data(args) -> int:
     _check_data_args(args)
+    from ..training.dataset import PairStore
+
+    store = PairStore(args.out, skip_bad=args.skip_bad_rows)  # a rerun's rows checked before anything heavy loads
     from ..compiler import load_domain
     from ..harness.workers import Interrupted, WorkerDied
     from ..llm.hf import TransformersBackend
     from ..training.data import Builder, DataSettings, build
-    from ..training.dataset import PairStore, mix_line
+    from ..training.dataset import mix_line
     from ..training.relabel import student_policy
 
     domain = load_domain(args.spec)
     split, personas, tasks, seeds = _selection(args, domain)
-    store = PairStore(args.out, skip_bad=args.skip_bad_rows)  # its lines checked before any model loads
     backend = TransformersBackend(args.student, device=args.device, batch_size=args.batch,
                                   temperature=args.temperature, seed=args.sample_seed)
     teacher = _teacher(args, domain, backend)

@@ -79,11 +79,11 @@ class BadRows(AdaptError):
 
 
 def bad_rows_error(path, bad: list, skip_flag: str = "--skip-bad-rows") -> BadRows:
-    """The error naming the first bad line (`bad`: (line number, why)) and how many there are."""
-    n, why = bad[0]
-    more = f" (and {len(bad) - 1} more bad line(s): {_lines(bad[1:])})" if len(bad) > 1 else ""
-    return BadRows(f"{path}:{n}: {why}{more}; fix or delete the line, or pass {skip_flag} to leave the bad "
-                   "row(s) out (counted and reported)")
+    """The error naming the bad lines (`bad`: (line number, why); the first three with why) in one line."""
+    named = "; ".join(f"{path}:{n}: {why}" for n, why in bad[:3])
+    more = f" (and {len(bad) - 3} more bad line(s): {_lines(bad[3:])})" if len(bad) > 3 else ""
+    return BadRows(f"{named}{more}; fix or delete the line(s), or pass {skip_flag} to leave the bad row(s) out "
+                   "(counted and reported)")
 
 
 def skipped_note(path, bad: list) -> str:

@@ -32,6 +32,7 @@ def train(method: str, s, spec=None, log=None) -> dict:
         last_checkpoint,
         load_tokenizer,
         prepare,
+        read_data,
         report_long,
         trim_log,
         write_settings,
@@ -46,12 +47,13 @@ def train(method: str, s, spec=None, log=None) -> dict:
         log(f"train {method}: {out} already holds this finished run ({done['steps']} steps, {out / 'train.json'}); "
             "nothing to do (a larger --max-steps trains on from its last checkpoint, another --out starts anew)")
         return done
+    data = read_data(method, s, log)  # a bad row stops the run before anything heavy loads
     if s.threads:
         import torch
 
         torch.set_num_threads(s.threads)
     tok = load_tokenizer(s.model)
-    p = prepare(method, s, tok, spec, log)
+    p = prepare(method, s, tok, spec, log, data)
     note = report_long(p, s, out)
     if note:
         log(f"adapt: {note}")

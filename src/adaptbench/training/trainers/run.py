@@ -50,28 +50,53 @@ def load_tokenizer(model: str):
     return tok
 
 
-def vocabulary(model: str, tokenizer) -> int:
-    """The ids the model embeds (its config's `vocab_size`; the tokenizer's size when it has none)."""
+def vocabulary(model: str, tokenizer=None) -> int | None:
+    """The ids the model embeds: its config.json's `vocab_size` (read without loading anything), else the
+    tokenizer's size, else None (only negative ids are then refused)."""
     try:
-        size = json.loads((Path(model) / "config.json").read_text()).get("vocab_size")
+        config = json.loads((Path(model) / "config.json").read_text())
+        size = config.get("vocab_size") or (config.get("text_config") or {}).get("vocab_size")
     except (OSError, ValueError, AttributeError):
         size = None
-    return size if isinstance(size, int) and size > 0 else len(tokenizer)
+    if isinstance(size, int) and size > 0:
+        return size
+    return len(tokenizer) if tokenizer is not None else None
 
 
-def prepare(method: str, s, tokenizer, spec=None, log=None) -> Prepared:
-    """The method's rows from `s.data`, every line checked (a bad one stops the run naming its file:line,
-    unless `s.skip_bad_rows`) and every row length-checked against `s.max_length` (`spec`: the spec
-    directory STaR-GATE replays its rollouts in; `log`: where skipped rows are reported)."""
+@dataclass(frozen=True)
+class Data:
+    """A method's input as read and checked: the rows of pairs.jsonl (or STaR-GATE's rollout records) and
+    the bad rows `--skip-bad-rows` left out."""
+
+    rows: list
+    bad: int = 0
+
+
+def read_data(method: str, s, log=None, tokenizer=None) -> Data:
+    """`s.data` read and every line checked before any model loads (a bad one stops the run naming its
+    file:line, unless `s.skip_bad_rows`; `log`: where the rows left out are reported)."""
     from . import rows as R
 
+    if method == "star-gate":
+        from .stargate import read_rollouts
+
+        return Data(read_rollouts(s.data, s.agent, s.skip_bad_rows, log))
+    return Data(*R.read_pairs(s.data, vocabulary(s.model, tokenizer), s.skip_bad_rows, log))
+
+
+def prepare(method: str, s, tokenizer, spec=None, log=None, data: Data | None = None) -> Prepared:
+    """The method's rows from `data` (default: `read_data`), every row length-checked against `s.max_length`
+    (`spec`: the spec directory STaR-GATE replays its rollouts in)."""
+    from . import rows as R
+
+    data = data or read_data(method, s, log, tokenizer)
     enc = Encoder(tokenizer)
     left: dict = {}
     if method == "star-gate":
         from ...compiler import load_domain
-        from .stargate import read_rollouts, split_of, stargate_rows, top_fraction
+        from .stargate import split_of, stargate_rows, top_fraction
 
-        records = read_rollouts(s.data, s.agent, s.skip_bad_rows, log)
+        records = data.rows
         kept = top_fraction(records, s.top)
         domain = load_domain(spec)
         try:
@@ -81,7 +106,7 @@ def prepare(method: str, s, tokenizer, spec=None, log=None) -> Prepared:
         left = {"rollouts": len(records), "rollouts_kept": len(kept), "rollouts_not_replayable": bad,
                 "split": split_of(domain, records)}
     else:
-        pairs, bad = R.read_pairs(s.data, vocabulary(s.model, tokenizer), s.skip_bad_rows, log)
+        pairs = data.rows
         build = {"dpo": R.dpo_rows, "sft": R.sft_rows,
                  "no-reflection": lambda p, e: R.no_reflection_rows(p, e, s.no_gain)}[method]
         try:
@@ -89,7 +114,7 @@ def prepare(method: str, s, tokenizer, spec=None, log=None) -> Prepared:
         except (KeyError, TypeError, ValueError) as exc:  # a row without the dataset contract's fields
             raise R.DataError(f"--data {s.data}: a row of pairs.jsonl is malformed ({type(exc).__name__}: "
                               f"{exc}); rebuild it with `adapt train data`") from None
-        left = {"pairs": len(pairs) + bad, "bad_rows_left_out": bad}
+        left = {"pairs": len(pairs) + data.bad, "bad_rows_left_out": data.bad}
     if not encoded:
         raise TrainError(f"--data {s.data}: no rows to train {method} on ({json.dumps(left)})")
     kept, long = check_lengths(encoded, s.max_length)
