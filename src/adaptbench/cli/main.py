@@ -52,8 +52,9 @@ def _add_validate(sub) -> None:
                        description="Compile the spec directories and report every problem at once. "
                                    "Exit 0 when clean, 1 on errors, 2 on usage errors.")
     from ..paper import default_spec
+    from .argtypes import spec_dir
 
-    p.add_argument("spec_dirs", nargs="*", default=[default_spec()],
+    p.add_argument("spec_dirs", nargs="*", default=[default_spec()], type=spec_dir,
                    help="spec directories (default: the paper's spec shipped with adaptbench; $ADAPT_SPEC overrides)")
     p.add_argument("--format", choices=["text", "json"], default="text", help="output format")
     p.add_argument("--matrix", action="store_true",
