@@ -104,7 +104,8 @@ def main(argv=None) -> int:
         return args.func(args)
     except SystemExit as exc:  # commands exit 1/2 with a message already printed
         return exc.code if isinstance(exc.code, int) else 1
-    except KeyboardInterrupt:
+    except KeyboardInterrupt:  # Ctrl-C where no command caught it (a model loading, a spec compiling)
+        print("\nadapt: interrupted (Ctrl-C) before the command finished", file=sys.stderr)
         return 130
     except BrokenPipeError:
         return 0
