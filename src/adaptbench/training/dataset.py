@@ -39,14 +39,18 @@ def check_row(row: dict) -> None:
 
 
 KEY_TYPES = (("persona", str), ("task", str), ("seed", int), ("interaction", int), ("step", int))
+# what reading a row back needs (resuming, the summary, training): files written before the newest FIELDS
+# were added stay readable
+READ_FIELDS = ("prompt", "chosen", "rejected", "kind", "skip_reason", "teacher_action", "question_source",
+               "prompt_tokens", "truncated", "persona", "task", "seed", "interaction", "step")
 
 
-def row_problem(row) -> str | None:
-    """What is wrong with a `pairs.jsonl` row (not an object, a field of the contract missing, an unknown
-    kind, a key of the wrong type), or None."""
+def row_problem(row, fields=FIELDS) -> str | None:
+    """What is wrong with a `pairs.jsonl` row (not an object, one of `fields` missing, an unknown kind, a key
+    of the wrong type), or None."""
     if not isinstance(row, dict):
         return f"a row must be a JSON object (got {type(row).__name__})"
-    missing = [f for f in FIELDS if f not in row]
+    missing = [f for f in fields if f not in row]
     if missing:
         return f"pair row lacks {', '.join(missing)}"
     if row["kind"] not in ("question", "teacher", "skipped"):
@@ -59,7 +63,12 @@ def row_problem(row) -> str | None:
     return None
 
 
-def parse_line(raw: bytes, problem=row_problem) -> tuple:
+def read_problem(row) -> str | None:
+    """What makes a row read back from `pairs.jsonl` unusable (`row_problem` on READ_FIELDS), or None."""
+    return row_problem(row, READ_FIELDS)
+
+
+def parse_line(raw: bytes, problem=read_problem) -> tuple:
     """(row, None) for a good line, (None, why) for a bad one (not UTF-8, not JSON, `problem(row)`)."""
     try:
         row = json.loads(raw.decode("utf-8"))
@@ -96,7 +105,7 @@ def _lines(bad: list, shown: int = 10) -> str:
     return ", ".join(nums) + (", ..." if len(bad) > shown else "")
 
 
-def read_rows(path: Path, problem=row_problem) -> tuple:
+def read_rows(path: Path, problem=read_problem) -> tuple:
     """(rows, bad, torn) of a JSONL file: the good rows, (line number, why) of each bad line, and whether the
     last line was torn (no newline and not a good row: a kill mid-write)."""
     data = path.read_bytes()

@@ -12,7 +12,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ...errors import AdaptError
-from ..dataset import TRAINABLE, bad_rows_error, read_rows, row_key, row_problem, skipped_note
+from ..dataset import TRAINABLE, bad_rows_error, read_problem, read_rows, row_key, skipped_note
 from .encode import Encoded, Encoder, action_of
 
 
@@ -47,7 +47,7 @@ def read_pairs(data, vocab: int | None = None, skip_bad: bool = False, log=None)
 def trainable_problem(row, vocab: int | None = None) -> str | None:
     """What makes a pairs.jsonl row unusable for training (the dataset contract, the prompt's messages,
     the completions' `Action: ` form, the student's token ids within the vocabulary), or None."""
-    why = row_problem(row)
+    why = read_problem(row)
     if why:
         return why
     prompt = row["prompt"]
