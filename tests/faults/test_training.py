@@ -156,6 +156,9 @@ def test_star_gate_names_a_bad_rollout_line(tiny, tmp_path):
                     '"satisfaction_rate": 0.5}\nnot json\n')
     got = _train("star-gate", runs, tiny, tmp_path / "sg", 1)
     assert got.returncode == 2 and f"{runs}:2: not JSON" in got.stderr and "Traceback" not in got.stderr
+    skip = _train("star-gate", runs, tiny, tmp_path / "sg", 1, "--skip-bad-rows")  # its one record has no step
+    assert f"{runs}: left out 1 bad row(s) (--skip-bad-rows), line(s) 2" in skip.stderr
+    assert skip.returncode == 1 and "no rows to train star-gate on" in skip.stderr and '"bad_rows_left_out": 1' in skip.stderr
 
 
 def _data_args(tiny, out, *extra):

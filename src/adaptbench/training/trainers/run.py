@@ -78,9 +78,9 @@ def read_data(method: str, s, log=None, tokenizer=None) -> Data:
     from . import rows as R
 
     if method == "star-gate":
-        from .stargate import read_rollouts
+        from .stargate import read_rollouts_counted
 
-        return Data(read_rollouts(s.data, s.agent, s.skip_bad_rows, log))
+        return Data(*read_rollouts_counted(s.data, s.agent, s.skip_bad_rows, log))
     return Data(*R.read_pairs(s.data, vocabulary(s.model, tokenizer), s.skip_bad_rows, log))
 
 
@@ -104,7 +104,7 @@ def prepare(method: str, s, tokenizer, spec=None, log=None, data: Data | None = 
         except (KeyError, TypeError) as exc:  # a record without a rollout record's fields
             raise R.DataError(f"--data {s.data}: a rollout record is malformed ({type(exc).__name__}: {exc})") from None
         left = {"rollouts": len(records), "rollouts_kept": len(kept), "rollouts_not_replayable": bad,
-                "split": split_of(domain, records)}
+                "bad_rows_left_out": data.bad, "split": split_of(domain, records)}
     else:
         pairs = data.rows
         build = {"dpo": R.dpo_rows, "sft": R.sft_rows,

@@ -54,8 +54,13 @@ def read_rollouts(data, agent: str = "planner", skip_bad: bool = False, log=None
     line that is not a record (not JSON, not an object, a record of `agent` without the fields a replay
     needs) is a `BadRows` error naming it by file:line, unless `skip_bad`: then it is left out and the
     count reported through `log`."""
+    return read_rollouts_counted(data, agent, skip_bad, log)[0]
+
+
+def read_rollouts_counted(data, agent: str = "planner", skip_bad: bool = False, log=None) -> tuple:
+    """(records, bad lines left out) as `read_rollouts` reads them."""
     agents = set(agent_names(agent))
-    out = []
+    out, skipped = [], 0
     for f in _files(data):
         rows, bad, torn = read_rows(f, lambda r: _record_problem(r, agents))
         if torn:
@@ -65,11 +70,12 @@ def read_rollouts(data, agent: str = "planner", skip_bad: bool = False, log=None
             raise bad_rows_error(f, bad)
         if bad and log:
             log(skipped_note(f, bad))
+        skipped += len(bad)
         out += [r for r in rows if r.get("agent") in agents and "error" not in r
                 and r["satisfaction_rate"] is not None]
     if not out:
         raise DataError(f"--data {data}: no finished rollouts of agent '{agent}'")
-    return out
+    return out, skipped
 
 
 def _record_problem(r, agents: set) -> str | None:
