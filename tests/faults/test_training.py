@@ -109,6 +109,7 @@ def test_killed_while_saving_the_adapter_or_train_json_resumes_to_exactly_max_st
     _resume_to_the_end(data, tiny, tmp_path / "dpo", ("log:3", moment))
 
 
+@pytest.mark.slow
 def test_sft_rerun_after_finishing_trains_nothing(tiny, tmp_path):
     data = data_dir(tmp_path / "data", [row(0), row(1)])
     out = tmp_path / "sft"
@@ -176,6 +177,7 @@ def test_a_bad_pairs_line_stops_a_data_rerun_untouched(tiny, tmp_path, case):
     assert "Traceback" not in got.stderr and (out / "pairs.jsonl").read_bytes() == before  # nothing cut
 
 
+@pytest.mark.slow
 def test_a_data_rerun_with_skip_bad_rows_keeps_every_good_row(tiny, tmp_path):
     kept = [row(5, persona="ron"), row(6, persona="ron")]  # rows after the bad line are kept, not cut
     out = data_dir(tmp_path / "data", [kept[0], "[]", kept[1], '{"torn": '])
@@ -187,3 +189,24 @@ def test_a_data_rerun_with_skip_bad_rows_keeps_every_good_row(tiny, tmp_path):
     rows = [json.loads(x) for x in (out / "pairs.jsonl").read_text().splitlines()]
     assert rows[:2] == kept and len(rows) == 4  # the two kept, then this run's two steps
     assert (out / "pairs.jsonl.bad").read_text() == "[]\n"
+
+
+def test_reopening_pairs_with_skip_bad_rows_keeps_every_good_row_in_place(tmp_path):
+    """The store `adapt train data --skip-bad-rows` opens (in process; the whole command: the slow test above)."""
+    from adaptbench.training.dataset import BadRows, PairStore
+
+    kept = [row(5), row(6), row(7)]
+    lines = [json.dumps(kept[0]), "[]", json.dumps(kept[1]), json.dumps({k: v for k, v in kept[2].items()
+                                                                        if k != "persona"}), json.dumps(kept[2])]
+    path = tmp_path / "pairs.jsonl"
+    path.write_text("\n".join(lines) + "\n" + '{"torn": ')
+    with pytest.raises(BadRows, match=r"pairs.jsonl:2: a row must be a JSON object .*pairs.jsonl:4: pair row lacks "
+                                      r"persona"):
+        PairStore(tmp_path)
+    notes = []
+    store = PairStore(tmp_path, skip_bad=True, log=notes.append)
+    assert store.rows == kept and len(notes) == 2
+    assert "cut a torn last line" in notes[0] and "left out 2 bad row(s) (--skip-bad-rows), line(s) 2, 4" in notes[1]
+    assert path.read_text() == "".join(json.dumps(r) + "\n" for r in kept)  # the good lines byte for byte, in order
+    assert (tmp_path / "pairs.jsonl.bad").read_text().splitlines() == [lines[1], lines[3]]
+    assert PairStore(tmp_path).rows == kept  # clean now
