@@ -117,6 +117,12 @@ def test_sft_rerun_after_finishing_trains_nothing(tiny, tmp_path):
     again = _train("sft", data, tiny, out, 2)
     assert again.returncode == 0 and "already holds this finished run (2 steps" in again.stderr
     assert json.loads((out / "train.json").read_text())["steps"] == 2 and _log_steps(out) == [1, 2]
+    import shutil
+
+    shutil.rmtree(out / "merged")  # a finished run that lost its merged model saves it again, training nothing
+    again = _train("sft", data, tiny, out, 2)
+    assert again.returncode == 0 and "holds all 2 steps" in again.stderr and (out / "merged" / "config.json").is_file()
+    assert json.loads((out / "train.json").read_text())["steps"] == 2 and _log_steps(out) == [1, 2]
 
 
 BAD = {

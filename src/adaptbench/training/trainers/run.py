@@ -186,7 +186,7 @@ def checkpoint_step(checkpoint: str | None) -> int:
 def finished(s, out: Path) -> dict | None:
     """OUT/train.json's content when OUT holds a finished run that reached the steps `s` asks for (its
     `--max-steps`, or its epochs over the rows the run trained on), else None. train.json is written
-    last, after the adapter and the merged model: it marks a run done."""
+    last, after the adapter and the merged model: it marks a run done (with both still there)."""
     from .engine import steps_per_epoch
 
     try:
@@ -195,7 +195,8 @@ def finished(s, out: Path) -> dict | None:
     except (OSError, ValueError, KeyError, TypeError):
         return None
     planned = s.max_steps or math.ceil(s.epochs * steps_per_epoch(s, rows))
-    return result if steps >= planned else None
+    whole = (out / "adapter").is_dir() and (out / "merged" / "config.json").is_file()  # else saved again
+    return result if steps >= planned and whole else None
 
 
 def trim_log(out: Path, step: int) -> None:
