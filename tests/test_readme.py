@@ -86,3 +86,38 @@ def test_readme_table_has_every_column_adapt_eval_prints():
     assert "| " + " | ".join(["Paper row", *header((1, 4))]) + " |" in readme
     assert "k=4 is the most seeds every (method, persona," in readme
     assert "docs/evaluation.md" in readme
+
+
+def test_readme_command_1_is_what_ci_runs_and_prints_the_table_under_it():
+    """Command 1 runs the seeds the results table is for (0-3: the pass^4 column), CI runs it as written and
+    compares the Table 1 it prints with the README's (.ci/readme_table.py)."""
+    readme = (ROOT / "README.md").read_text()
+    start = readme.index("# 1. install and run the main job")
+    command = next(line for line in readme[start:].splitlines() if line.startswith("pip install -e ."))
+    job = command.split(" && ", 1)[1]
+    assert "--seeds 0-3" in job and "--out runs/demo.jsonl" in job
+    ci = (ROOT / ".ci" / "run").read_text()
+    assert job.replace("adapt validate spec && ", "adapt validate spec && adapt grammar check && ") in ci
+    assert "adapt eval runs/demo.jsonl --markdown | python .ci/readme_table.py" in ci
+    assert "Scripted agents on all 16 personas x 8 tasks x scene seeds 0-3" in readme
+    assert "`adapt eval runs/demo.jsonl --markdown`" in readme  # the caption's command, runnable as written
+    sys.path.insert(0, str(ROOT / ".ci"))
+    try:
+        from readme_table import readme_table
+    finally:
+        sys.path.pop(0)
+    rows = readme_table()
+    assert len(rows) == 9 and all("| 512 |" in r for r in rows if "missing" not in r and "---" not in r
+                                  and "Paper row" not in r)  # 128 (persona, task) pairs x 4 seeds
+
+
+def test_readme_command_2_names_what_the_viewer_tests_need():
+    readme = (ROOT / "README.md").read_text()
+    start = readme.index("# 2. install and run the tests")
+    comment = " ".join(line for line in readme[start:readme.index("```", start)].splitlines() if line.startswith("#"))
+    assert "Chromium" in comment and "apt-get install chromium" in comment
+    assert "ADAPT_REQUIRE_CHROMIUM=1" in (ROOT / ".ci" / "run").read_text()  # CI installs it: there they must run
+    import tomllib
+
+    addopts = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["pytest"]["ini_options"]["addopts"]
+    assert "-rs" in addopts.split()  # every skip's reason in the summary

@@ -77,7 +77,9 @@ def test_bad_config_is_one_line_and_exit_2(tmp_path, capsys):
 
 
 def _row(step, kind, prompt, chosen="Look for pan", rejected="Look for eggs", reason=None):
-    return {"prompt": prompt, "kind": kind, "skip_reason": reason, "persona": "sarah", "task": "eggs", "seed": 0,
+    from adaptbench.training.dataset import FIELDS
+
+    return dict.fromkeys(FIELDS) | {"prompt": prompt, "kind": kind, "skip_reason": reason, "persona": "sarah", "task": "eggs", "seed": 0,
             "interaction": 1, "step": step, "truncated": False, "teacher_action": "Look for pan",
             "student_action": rejected, "question": None,
             "chosen": None if kind == "skipped" else [{"role": "assistant", "content": "Action: " + chosen}],
@@ -326,6 +328,14 @@ def test_read_rollouts_takes_one_agent_or_several(tmp_path):
     f = tmp_path / "r.jsonl"
     f.write_text("\n".join([rec("oracle"), rec("oracle-ask"), rec("planner"), rec("oracle", error="boom"),
                             "not json"]) + "\n")
+    from adaptbench.training.dataset import BadRows
+
+    with pytest.raises(BadRows, match=r"r.jsonl:5: not JSON"):  # a line that is not a record is named
+        read_rollouts(f, "oracle")
+    notes = []
+    assert [r["agent"] for r in read_rollouts(f, "oracle", skip_bad=True, log=notes.append)] == ["oracle"]
+    assert notes and "left out 1 bad row(s)" in notes[0]
+    f.write_text("\n".join([rec("oracle"), rec("oracle-ask"), rec("planner"), rec("oracle", error="boom")]) + "\n")
     assert [r["agent"] for r in read_rollouts(f, "oracle")] == ["oracle"]
     assert [r["agent"] for r in read_rollouts(f, "oracle, oracle-ask")] == ["oracle", "oracle-ask"]
     with pytest.raises(DataError, match="no finished rollouts of agent 'react'"):

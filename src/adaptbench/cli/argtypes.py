@@ -61,3 +61,16 @@ def read_lines(path: str) -> list:
 def _fail(message: str):
     print(f"adapt: {message}", file=sys.stderr)
     raise SystemExit(2)
+
+
+def spec_dir(text: str) -> str:
+    """A spec directory. `spec` where no such directory exists (an installed wheel run from any directory
+    but a checkout's root, where the README's `adapt validate spec` points) is the paper's spec shipped
+    with adaptbench, said on stderr; any other path is taken as given."""
+    if Path(text).as_posix().rstrip("/") != "spec" or Path(text).exists():
+        return text
+    from ..paper import shipped_spec
+
+    print(f"adapt: note: no directory '{text}' here; using the paper's spec shipped with adaptbench "
+          f"({shipped_spec()})", file=sys.stderr)
+    return str(shipped_spec())

@@ -111,7 +111,9 @@ def add_commands(sub) -> None:
                                    "SPEC_DIR/fixtures (or --fixtures; format in docs/fixtures.md) and check that "
                                    "the oracle satisfies every applicable preference on a few seeds. Prints a "
                                    "short report; exit 0 when every check passes, 1 otherwise.")
-    p.add_argument("spec_dir", nargs="?", default=default_spec(), help="spec directory (default: the paper's spec shipped with adaptbench; $ADAPT_SPEC overrides)")
+    from .argtypes import spec_dir
+
+    p.add_argument("spec_dir", nargs="?", default=default_spec(), type=spec_dir, help="spec directory (default: the paper's spec shipped with adaptbench; $ADAPT_SPEC overrides)")
     p.add_argument("--fixtures", help="fixture file or directory (default: SPEC_DIR/fixtures)")
     p.add_argument("--seeds", default="0-1", help="scene seeds for the solvability check (default 0-1)")
     p.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1),

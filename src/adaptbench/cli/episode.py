@@ -131,8 +131,9 @@ def _play_line(domain, env, text: str) -> None:
 def add_spec_option(p) -> None:
     """The `--spec DIR` option every command that loads the domain takes."""
     from ..paper import default_spec
+    from .argtypes import spec_dir
 
-    p.add_argument("--spec", default=default_spec(), help="spec directory (default: the paper's spec shipped with adaptbench; $ADAPT_SPEC overrides)")
+    p.add_argument("--spec", default=default_spec(), type=spec_dir, help="spec directory (default: the paper's spec shipped with adaptbench; $ADAPT_SPEC overrides)")
 
 
 def _common(p) -> None:

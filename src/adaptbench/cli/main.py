@@ -52,8 +52,9 @@ def _add_validate(sub) -> None:
                        description="Compile the spec directories and report every problem at once. "
                                    "Exit 0 when clean, 1 on errors, 2 on usage errors.")
     from ..paper import default_spec
+    from .argtypes import spec_dir
 
-    p.add_argument("spec_dirs", nargs="*", default=[default_spec()],
+    p.add_argument("spec_dirs", nargs="*", default=[default_spec()], type=spec_dir,
                    help="spec directories (default: the paper's spec shipped with adaptbench; $ADAPT_SPEC overrides)")
     p.add_argument("--format", choices=["text", "json"], default="text", help="output format")
     p.add_argument("--matrix", action="store_true",
@@ -103,7 +104,8 @@ def main(argv=None) -> int:
         return args.func(args)
     except SystemExit as exc:  # commands exit 1/2 with a message already printed
         return exc.code if isinstance(exc.code, int) else 1
-    except KeyboardInterrupt:
+    except KeyboardInterrupt:  # Ctrl-C where no command caught it (a model loading, a spec compiling)
+        print("\nadapt: interrupted (Ctrl-C) before the command finished", file=sys.stderr)
         return 130
     except BrokenPipeError:
         return 0

@@ -6,6 +6,8 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from ..install import install_hint
+
 
 def add_rollout_options(p) -> None:
     """The model options of `adapt rollout` (used by the LLM agents only) and the step budget (every agent)."""
@@ -61,7 +63,7 @@ def _backend(args, model: str):
     try:
         from ..llm.backend import make_backend
     except ImportError as exc:  # pragma: no cover - the models extra is missing
-        _fail(f"{exc}; install the models extra: pip install torch==2.13.0 && pip install -e '.[models]'")
+        _fail(f"{exc}; install the models extra: {install_hint('models')}")
     from ..llm.backend import ModelError
 
     try:
@@ -74,7 +76,7 @@ def _backend(args, model: str):
         return make_backend("transformers", model=model, device=args.device, **_cpu_settings(args, model),
                             **_sampling(args))
     except ImportError as exc:
-        _fail(f"{exc}; install the models extra: pip install torch==2.13.0 && pip install -e '.[models]'")
+        _fail(f"{exc}; install the models extra: {install_hint('models')}")
     except (ModelError, FileNotFoundError, OSError, ValueError) as exc:
         _fail(str(exc).splitlines()[0] if str(exc) else type(exc).__name__)
 
@@ -201,7 +203,7 @@ def _cmd_model_init(args) -> int:
         path = init_tiny(load_domain(args.spec), out, seed=args.seed, vocab_size=args.vocab,
                          hidden=args.hidden, layers=args.layers)
     except ImportError as exc:
-        _fail(f"{exc}; install the models extra: pip install torch==2.13.0 && pip install -e '.[models]'")
+        _fail(f"{exc}; install the models extra: {install_hint('models')}")
     print(f"tiny model written to {path} (load it with --model {path})")
     return 0
 
@@ -224,7 +226,7 @@ def _cmd_model_pretrain(args) -> int:
                         budget=args.budget, seed=args.seed,
                         log=(lambda m: None) if args.quiet else (lambda m: print(m, file=sys.stderr)))
     except ImportError as exc:
-        _fail(f"{exc}; install the train extra: pip install torch==2.13.0 && pip install -e '.[train]'")
+        _fail(f"{exc}; install the train extra: {install_hint('train')}")
     except SpecError:
         raise  # a ValueError too: the one handler reports its diagnostics
     except ValueError as exc:
@@ -260,7 +262,7 @@ def _cmd_model_student(args) -> int:
     try:
         info = build_student(domain, args.out, s, log=lambda m: print(m, file=sys.stderr), progress=not args.quiet)
     except ImportError as exc:
-        _fail(f"{exc}; install the train extra: pip install torch==2.13.0 && pip install -e '.[train]'")
+        _fail(f"{exc}; install the train extra: {install_hint('train')}")
     r, sec = info["pretrain"], info["seconds"]
     print(f"student saved to {args.out}: {r['examples']} steps of {r['episodes']} teacher episodes, {r['steps']} "
           f"updates (loss {r['first_loss']:.2f} -> {r['last_loss']:.2f}); data {sec['data']:.0f} s, training "
@@ -313,7 +315,7 @@ def _gguf_run(fn, *a) -> int:
     except ImportFailed as exc:
         _fail(str(exc), 1)
     except ImportError as exc:
-        _fail(f"{exc}; install the models extra: pip install torch==2.13.0 && pip install -e '.[models]'")
+        _fail(f"{exc}; install the models extra: {install_hint('models')}")
     out = a[-2]
     print(f"{rec.get('model', rec['gguf_file'])}: {rec['parameters'] / 1e6:.1f}M parameters, {rec['dtype']}, "
           f"context {rec['context']}, saved to {out} in {rec['seconds']:.0f} s (provenance in {out}/provenance.json; "

@@ -154,18 +154,20 @@ def _cmd_eval(args) -> int:
     evaluation.one_budget(args, records)
     records, ceiling_note = evaluation.with_ceiling(args, records)
     rows, text, csv_text, md_text, lines = _tables(args, records)
-    print(text)
+    markdown_out = args.markdown == "-"
+    print(md_text() if markdown_out else text)  # the Markdown holds the notes
     none = sum(1 for r in records if r.satisfaction_rate is None)
     if none and not args.by:
         print(f"{none} episode(s) had no applicable preference and are left out of the satisfaction rates")
-    for line in [*lines, *sampling_notes(records), *evaluation.seed_notes(runs, resolved), *ceiling_note]:
+    for line in [*([] if markdown_out else lines), *sampling_notes(records), *evaluation.seed_notes(runs, resolved),
+                 *ceiling_note]:
         print(line)
     if args.plot:
         _plot(args.plot, rows if not args.by else _agent_rows(args, records), records)
     evaluation.figures(args, records)
     if args.csv:
         _write_out(args.csv, csv_text() + "\n")
-    if args.markdown:
+    if args.markdown and not markdown_out:
         _write_out(args.markdown, md_text() + "\n")
     return 0
 
@@ -273,7 +275,9 @@ def add_commands(sub) -> None:
                                                   "(read only for records with a `split`) and whose simulator replays "
                                                   "episodes for --plot-temporal (default: spec)")
     p.add_argument("--csv", help="also write the tables as CSV")
-    p.add_argument("--markdown", help="also write the tables as Markdown")
+    p.add_argument("--markdown", nargs="?", const="-", metavar="PATH",
+                   help="also write the tables as Markdown to PATH; with no PATH (or -), print them as Markdown "
+                        "instead of the text tables")
     p.add_argument("--plot", help="also draw satisfaction per agent and per persona (PNG, SVG or PDF by suffix; needs the plots extra)")
     p.add_argument("--by", choices=["task", "persona", "preference"],
                    help="break the results down per task, persona or preference instead of the seen/unseen table")

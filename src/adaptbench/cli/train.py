@@ -85,11 +85,14 @@ def _check_data_args(args) -> None:
 
 def _cmd_data(args) -> int:
     _check_data_args(args)
+    from ..training.dataset import PairStore
+
+    store = PairStore(args.out, skip_bad=args.skip_bad_rows)  # a rerun's rows checked before anything heavy loads
     from ..compiler import load_domain
     from ..harness.workers import Interrupted, WorkerDied
     from ..llm.hf import TransformersBackend
     from ..training.data import MAX_LENGTH, Builder, DataSettings, TooLong, build, opening_tokens
-    from ..training.dataset import PairStore, mix_line
+    from ..training.dataset import mix_line
     from ..training.relabel import student_policy
 
     domain = load_domain(args.spec)
@@ -105,7 +108,6 @@ def _cmd_data(args) -> int:
         _fail(f"--max-length {args.max_length} cannot hold a row's opening prompt (instructions, layout, task) and "
               f"its completion ({need} tokens): raise --max-length to at least {need}, more to keep questions and "
               f"answers (default {MAX_LENGTH})")
-    store = PairStore(args.out)
 
     def make_builder(sink):
         return Builder(domain, student_policy(backend, domain), settings, sink, args.student, teacher)
@@ -184,6 +186,9 @@ def add_data(train_sub) -> None:
                    help="skip (no pair) the steps after N failed actions in a row: this project's option, not the "
                         "paper's (off by default: the looping states a correction should come from get pairs)")
     p.add_argument("--device", default="cpu")
+    p.add_argument("--skip-bad-rows", action="store_true", help="on a rerun, leave out the lines of OUT/pairs.jsonl "
+                   "that are not rows (moved to pairs.jsonl.bad, counted and reported; their steps made again) "
+                   "instead of stopping at the first (exit 2, naming its file:line)")
     from .model import add_sampling_options
 
     add_sampling_options(p, "")  # the student's actions and reflection questions

@@ -39,9 +39,11 @@ def _cmd_grpo(args) -> int:
     import importlib.util
     from pathlib import Path
 
+    from ..install import install_hint
+
     missing = [m for m in ("torch", "transformers", "trl", "peft", "datasets") if importlib.util.find_spec(m) is None]
     if missing:
-        print(f"adapt: train grpo needs {', '.join(missing)}: pip install -e '.[train]'", file=sys.stderr)
+        print(f"adapt: train grpo needs {', '.join(missing)}: {install_hint('train')}", file=sys.stderr)
         return 1
     if args.temperature <= 0:
         print("adapt: train grpo needs --temperature above 0 (a group of identical greedy rollouts has no "

@@ -33,6 +33,7 @@ def _cmd(method: str):
         from dataclasses import replace
         from pathlib import Path
 
+        from ..install import install_hint
         from ..llm.named import resolve_model
         from ..training.trainers import METHODS, train
         from ..training.trainers.config import given_flags, load_settings
@@ -42,7 +43,7 @@ def _cmd(method: str):
         s = replace(s, model=resolve_model(s.model))  # `student`: the shipped tiny student
         missing = [m for m in ("torch", "transformers", "trl", "peft", "datasets") if importlib.util.find_spec(m) is None]
         if missing:
-            print(f"adapt: train {method} needs {', '.join(missing)}: pip install -e '.[train]'", file=sys.stderr)
+            print(f"adapt: train {method} needs {', '.join(missing)}: {install_hint('train')}", file=sys.stderr)
             return 1
         if not (Path(s.model) / "config.json").is_file():
             print(f"adapt: --model {s.model} is not a model directory (no config.json)", file=sys.stderr)
@@ -56,8 +57,9 @@ def _cmd(method: str):
         last = r.get("last", {})
         figures = ", ".join(f"{k.split('/')[-1]} {last[k]:.4g}" for k in ("loss", "rewards/margins",
                                                                          "rewards/accuracies") if k in last)
+        pace = f"{r['seconds_per_step']:.3f} s/step" if r.get("seconds_per_step") else "no step run now"
         print(f"{method}: {r['steps']} steps on {r['rows']} rows ({figures}); "
-              f"{r['seconds_per_step'] or 0:.3f} s/step; adapter in {Path(s.out) / 'adapter'}, merged model in "
+              f"{pace}; adapter in {Path(s.out) / 'adapter'}, merged model in "
               f"{Path(s.out) / 'merged'} (use it as --model)")
         return 0
 

@@ -197,6 +197,30 @@ class _Builder:
         return out
 
 
+def _unclosed_quote(text: str, exc) -> tuple | None:
+    """(line, column, line of the error) of the quote that opened a value left unclosed, when that is what
+    the syntax error `exc` comes from: the scanner stopped inside a quoted scalar, or the last token read
+    before the error is a quoted scalar spanning lines (its closing quote is another value's opening one)."""
+    if "quoted scalar" in (exc.context or "") and exc.context_mark is not None:
+        m = exc.context_mark
+        return m.line + 1, m.column + 1, (exc.problem_mark or m).line + 1
+    err = exc.problem_mark or exc.context_mark
+    if err is None:
+        return None
+    quoted = None
+    try:
+        for token in yaml.scan(text, Loader=_Loader):
+            if token.start_mark.line > err.line:
+                break
+            if isinstance(token, yaml.ScalarToken) and token.style in ('"', "'"):
+                quoted = token
+    except yaml.YAMLError:
+        pass
+    if quoted is not None and quoted.start_mark.line < quoted.end_mark.line and err.line - quoted.end_mark.line <= 1:
+        return quoted.start_mark.line + 1, quoted.start_mark.column + 1, err.line + 1
+    return None
+
+
 def load_yaml(text: str, file: str) -> tuple[LoadedDoc | None, list[Diagnostic]]:
     """Parse one YAML document keeping positions; syntax errors and hostile input become diagnostics."""
     diags: list[Diagnostic] = []
@@ -212,6 +236,11 @@ def load_yaml(text: str, file: str) -> tuple[LoadedDoc | None, list[Diagnostic]]
     except yaml.MarkedYAMLError as exc:
         mark = exc.problem_mark or exc.context_mark
         line, col = (mark.line + 1, mark.column + 1) if mark else (1, 1)
+        opened = _unclosed_quote(text, exc)
+        if opened:
+            return None, [Diagnostic(file, *opened[:2], "S000", f"YAML syntax error: the quoted value opened here is "
+                                     f"not closed (it runs on to line {opened[2]}, where parsing fails: close it "
+                                     "on this line)")]
         from .yamlhints import hint
 
         why = hint(f"{exc.context or ''} {exc.problem or ''}", text, line, col)

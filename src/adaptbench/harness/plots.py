@@ -14,8 +14,6 @@ from pathlib import Path
 from ..errors import AdaptError
 from .evaluate import _order, mean_se
 
-INSTALL = "pip install 'adaptbench[plots]'"
-
 
 class PlotsUnavailable(AdaptError, RuntimeError):
     """matplotlib is not installed."""
@@ -25,7 +23,9 @@ def _pyplot():
     try:
         import matplotlib
     except ImportError:
-        raise PlotsUnavailable(f"plots need matplotlib: {INSTALL}") from None
+        from ..install import install_hint
+
+        raise PlotsUnavailable(f"plots need matplotlib: {install_hint('plots')}") from None
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 

@@ -46,7 +46,7 @@ class Runs:
 def _classify(rec, why, seen: set, splits):
     """(record, None) for a usable episode, else (None, the reason it is skipped)."""
     if rec is None:
-        return None, {"not JSON": "not JSON (torn line)"}.get(why, why)
+        return None, why
     try:
         record = EpisodeRecord.from_dict(rec)
     except RecordError as exc:
@@ -82,10 +82,13 @@ def load_runs(paths, splits=None) -> Runs:
     for p in map(Path, paths):
         _check_file(p)
         hashes = runs.hashes.setdefault(str(p), Counter())
+        lines = not_json = 0
         try:
             for _, line in iter_lines(p):
                 record, reason = _classify(*parse_line(line), seen, splits)
+                lines += 1
                 if reason:
+                    not_json += reason == "not JSON"
                     runs.skipped[reason] += 1
                     continue
                 hashes[record.spec_hash] += 1
@@ -95,6 +98,9 @@ def load_runs(paths, splits=None) -> Runs:
             tail = p.read_bytes()[-1:]
         except OSError as exc:
             raise RunsError(f"cannot read {p} ({exc.strerror})", 2) from None
+        if lines and not_json == lines:
+            raise RunsError(f"{p} is not a run record (JSONL written by adapt rollout): none of its {lines} lines is "
+                            "a JSON record", 2)
         if tail and tail != b"\n":
             runs.skipped["torn last line"] += 1
     return runs

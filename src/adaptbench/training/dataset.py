@@ -10,9 +10,13 @@ kind question or teacher) and `summary.json` (the mix).
 from __future__ import annotations
 
 import json
+import os
 import statistics
+import sys
 from collections import Counter
 from pathlib import Path
+
+from ..errors import AdaptError
 
 TRAINABLE = ("question", "teacher")
 FIELDS = ("prompt", "chosen", "rejected", "kind", "skip_reason", "teacher_action", "student_action", "question",
@@ -29,40 +33,153 @@ def row_key(row: dict) -> tuple:
 
 def check_row(row: dict) -> None:
     """ValueError unless the row has every field of the dataset contract and a coherent kind."""
-    missing = [f for f in FIELDS if f not in row]
+    problem = row_problem(row)
+    if problem:
+        raise ValueError(problem)
+
+
+KEY_TYPES = (("persona", str), ("task", str), ("seed", int), ("interaction", int), ("step", int))
+# what reading a row back needs (resuming, the summary, training): files written before the newest FIELDS
+# were added stay readable
+READ_FIELDS = ("prompt", "chosen", "rejected", "kind", "skip_reason", "teacher_action", "question_source",
+               "prompt_tokens", "truncated", "persona", "task", "seed", "interaction", "step")
+
+
+def row_problem(row, fields=FIELDS) -> str | None:
+    """What is wrong with a `pairs.jsonl` row (not an object, one of `fields` missing, an unknown kind, a key
+    of the wrong type), or None."""
+    if not isinstance(row, dict):
+        return f"a row must be a JSON object (got {type(row).__name__})"
+    missing = [f for f in fields if f not in row]
     if missing:
-        raise ValueError(f"pair row lacks {', '.join(missing)}")
+        return f"pair row lacks {', '.join(missing)}"
     if row["kind"] not in ("question", "teacher", "skipped"):
-        raise ValueError(f"unknown pair kind '{row['kind']}'")
+        return f"unknown pair kind '{row['kind']}' (question, teacher or skipped)"
     if (row["kind"] == "skipped") != (row["chosen"] is None):
-        raise ValueError("a skipped row has no chosen completion, and only a skipped row")
+        return "a skipped row has no chosen completion, and only a skipped row"
+    wrong = [k for k, t in KEY_TYPES if not isinstance(row[k], t) or isinstance(row[k], bool)]
+    if wrong:
+        return f"{', '.join(wrong)} of the wrong type ({', '.join(f'{k} {row[k]!r}' for k in wrong)})"
+    return None
+
+
+def read_problem(row) -> str | None:
+    """What makes a row read back from `pairs.jsonl` unusable (`row_problem` on READ_FIELDS), or None."""
+    return row_problem(row, READ_FIELDS)
+
+
+def parse_line(raw: bytes, problem=read_problem) -> tuple:
+    """(row, None) for a good line, (None, why) for a bad one (not UTF-8, not JSON, `problem(row)`)."""
+    try:
+        row = json.loads(raw.decode("utf-8"))
+    except UnicodeDecodeError:
+        return None, "not UTF-8 text"
+    except ValueError as exc:
+        return None, f"not JSON ({exc.msg} at column {exc.colno})"
+    why = problem(row)
+    return (None, why) if why else (row, None)
+
+
+class BadRows(AdaptError):
+    """Lines of a rows file that cannot be used, named by file:line: a usage error (exit 2), unless the
+    command is told to skip them (`--skip-bad-rows`)."""
+
+    exit_code = 2
+
+
+def bad_rows_error(path, bad: list, skip_flag: str = "--skip-bad-rows") -> BadRows:
+    """The error naming the bad lines (`bad`: (line number, why); the first three with why) in one line."""
+    named = "; ".join(f"{path}:{n}: {why}" for n, why in bad[:3])
+    more = f" (and {len(bad) - 3} more bad line(s): {_lines(bad[3:])})" if len(bad) > 3 else ""
+    return BadRows(f"{named}{more}; fix or delete the line(s), or pass {skip_flag} to leave the bad row(s) out "
+                   "(counted and reported)")
+
+
+def skipped_note(path, bad: list) -> str:
+    """The line that reports the rows `--skip-bad-rows` left out."""
+    return f"{path}: left out {len(bad)} bad row(s) (--skip-bad-rows), line(s) {_lines(bad)}; the first: {bad[0][1]}"
+
+
+def _lines(bad: list, shown: int = 10) -> str:
+    nums = [str(n) for n, _ in bad[:shown]]
+    return ", ".join(nums) + (", ..." if len(bad) > shown else "")
+
+
+def read_rows(path: Path, problem=read_problem) -> tuple:
+    """(rows, bad, torn) of a JSONL file: the good rows, (line number, why) of each bad line, and whether the
+    last line was torn (no newline and not a good row: a kill mid-write)."""
+    data = path.read_bytes()
+    lines = data.split(b"\n")
+    last, lines = lines[-1], lines[:-1]
+    rows, bad = [], []
+    for n, raw in enumerate(lines, 1):
+        if not raw.strip():  # a blank line holds no row
+            continue
+        row, why = parse_line(raw, problem)
+        if why:
+            bad.append((n, why))
+        else:
+            rows.append(row)
+    torn = False
+    if last.strip():
+        row, why = parse_line(last, problem)
+        if why:
+            torn = True
+        else:
+            rows.append(row)
+    return rows, bad, torn
 
 
 class PairStore:
-    """`pairs.jsonl` under `out`: rows appended and flushed one by one; a torn last line (a kill mid-write)
-    is dropped on reopening."""
+    """`pairs.jsonl` under `out`: rows appended and flushed one by one. Reopening it checks every line: a
+    torn last line (a kill mid-write) is cut off and said so; any other bad line (`[]`, a row without the
+    contract's fields, an unknown kind, not JSON) is a `BadRows` error naming it by file:line, unless
+    `skip_bad`: then the bad lines are moved to `pairs.jsonl.bad`, counted and reported through `log`,
+    and their steps made again."""
 
-    def __init__(self, out):
+    def __init__(self, out, skip_bad: bool = False, log=None):
         self.out = Path(out)
         self.out.mkdir(parents=True, exist_ok=True)
         self.path = self.out / "pairs.jsonl"
-        self.rows = self._read()
+        self.log = log or _stderr
+        self.rows = self._read(skip_bad)
         self.keys = {row_key(r) for r in self.rows}
 
-    def _read(self) -> list:
+    def _read(self, skip_bad: bool) -> list:
         if not self.path.is_file():
             return []
-        rows, good = [], 0
-        with self.path.open("rb") as f:
-            for line in f:
-                try:
-                    rows.append(json.loads(line))
-                except ValueError:
-                    break
-                good += len(line)
-        with self.path.open("r+b") as f:  # cut a torn last line so appends start on a clean line
-            f.truncate(good)
+        rows, bad, torn = read_rows(self.path)
+        if bad and not skip_bad:
+            raise bad_rows_error(self.path, bad)
+        if torn:
+            self.log(f"{self.path}: cut a torn last line (a kill mid-write); its step is made again")
+        if bad:
+            lines = self.path.read_bytes().split(b"\n")
+            with (self.out / "pairs.jsonl.bad").open("ab") as f:
+                f.write(b"".join(lines[n - 1] + b"\n" for n, _ in bad))
+            self.log(skipped_note(self.path, bad) + f"; moved to {self.out / 'pairs.jsonl.bad'}, their steps made again")
+        if bad or torn or not self._ends_clean():
+            self._rewrite({n for n, _ in bad}, torn)
         return rows
+
+    def _ends_clean(self) -> bool:
+        size = self.path.stat().st_size
+        if not size:
+            return True
+        with self.path.open("rb") as f:
+            f.seek(size - 1)
+            return f.read(1) == b"\n"
+
+    def _rewrite(self, bad: set, torn: bool) -> None:
+        """pairs.jsonl without the bad lines and the torn tail (the good lines byte for byte), atomically."""
+        lines = self.path.read_bytes().split(b"\n")
+        last, lines = lines[-1], lines[:-1]
+        keep = [raw + b"\n" for n, raw in enumerate(lines, 1) if n not in bad]
+        if last.strip() and not torn:
+            keep.append(last + b"\n")
+        tmp = self.path.with_name("pairs.jsonl.tmp")
+        tmp.write_bytes(b"".join(keep))
+        os.replace(tmp, self.path)
 
     def done(self, key: tuple) -> bool:
         """Whether a step of this key is already written."""
@@ -135,6 +252,10 @@ def _canonical_counts(rows: list) -> dict:
 
 
 KINDS_ALL = ("question", "teacher", "skipped")
+
+
+def _stderr(msg: str) -> None:
+    print(f"adapt: {msg}", file=sys.stderr, flush=True)
 
 
 def mix_line(summary: dict) -> str:

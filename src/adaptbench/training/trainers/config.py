@@ -66,6 +66,9 @@ class TrainSettings:
     threads: int = setting(None, "CPU threads for torch (default: torch's)", int)
     allow_eval_seeds: bool = setting(False, "train on data from the evaluation scene seeds 0-3 (refused by default)",
                                      bool)
+    skip_bad_rows: bool = setting(False, "leave out the --data lines that are not usable rows (counted, reported "
+                                         "and recorded in train.json) instead of stopping at the first (exit 2, "
+                                         "naming its file:line)", bool)
 
     def check(self) -> None:
         """SettingsError on a value out of range."""

@@ -13,8 +13,10 @@ from __future__ import annotations
 import json
 import math
 import os
+import shutil
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 from .config import DPOSettings
@@ -22,6 +24,22 @@ from .run import TrainError
 
 METRICS = ("loss", "rewards/margins", "rewards/accuracies", "rewards/chosen", "rewards/rejected",
            "mean_token_accuracy", "learning_rate", "grad_norm")
+
+
+IDLE = {"seconds": 0.0, "steps_run": 0, "seconds_per_step": None, "cpu_seconds_per_step": None}  # no step run
+
+
+@dataclass(frozen=True)
+class Trained:
+    """What a finished training holds: its optimizer steps and its log history (TRL's log dicts)."""
+
+    steps: int
+    history: list
+
+
+def is_main() -> bool:
+    """Whether this is the main process (`accelerate launch` sets RANK; one process: yes)."""
+    return int(os.environ.get("RANK", "0")) == 0
 
 
 def world_size() -> int:
@@ -107,7 +125,7 @@ def progress_callback(out: Path, log):
 
         def on_log(self, args, state, control, logs=None, **kw):
             logs = logs or {}
-            if not state.is_world_process_zero:
+            if not state.is_world_process_zero or "train_runtime" in logs:  # the end's totals: train.json's
                 return
             with (out / "log.jsonl").open("a", encoding="utf-8") as f:
                 f.write(json.dumps({"step": state.global_step, **logs}) + "\n")
@@ -164,20 +182,68 @@ def _build(method: str, s, rows: list, tokenizer, out: Path, log):
         raise TrainError(f"train {method}: {' '.join(str(exc).split())[:400]}") from None
 
 
+def replace_dir(tmp: Path, final: Path) -> None:
+    """Put the finished directory `tmp` in place of `final` (a kill leaves the one or the other whole)."""
+    if final.exists():
+        shutil.rmtree(final)
+    os.replace(tmp, final)
+
+
+def _partial(path: Path) -> Path:
+    tmp = path.with_name(path.name + ".partial")
+    if tmp.exists() and is_main():
+        shutil.rmtree(tmp)  # a killed run's
+    return tmp
+
+
+def save_adapter(trainer, out: Path) -> None:
+    """The trained adapter into OUT/adapter.partial (`finish_adapter` puts it in place)."""
+    trainer.save_model(str(_partial(out / "adapter")))
+
+
+ADAPTER_FILES = ("adapter_config.json", "adapter_model.safetensors", "adapter_model.bin", "README.md")
+
+
+def from_checkpoint(checkpoint: str, out: Path) -> Trained:
+    """The adapter of a checkpoint that finished the training, copied into OUT/adapter.partial, and its
+    steps and log history."""
+    ckpt = Path(checkpoint)
+    state = json.loads((ckpt / "trainer_state.json").read_text())
+    tmp = _partial(out / "adapter")
+    tmp.mkdir(parents=True)
+    for name in ADAPTER_FILES:
+        if (ckpt / name).is_file():
+            shutil.copy2(ckpt / name, tmp / name)
+    return Trained(state["global_step"], state.get("log_history", []))
+
+
+def finish_adapter(out: Path, tokenizer) -> None:
+    """The tokenizer beside the adapter in OUT/adapter.partial, then the whole put in place as OUT/adapter."""
+    tmp = out / "adapter.partial"
+    tokenizer.save_pretrained(str(tmp))
+    replace_dir(tmp, out / "adapter")
+
+
 def merge(model_dir: str, adapter: Path, merged: Path, tokenizer) -> None:
-    """The base model with the adapter merged in, saved as a plain model directory (the base's dtype)."""
+    """The base model with the adapter merged in, saved as a plain model directory (the base's dtype),
+    written beside and then put in place of `merged`."""
+    import warnings
+
     from peft import PeftModel
     from transformers import AutoModelForCausalLM
 
+    warnings.filterwarnings("ignore", message=r".*(is_)?gradient_checkpointing` is deprecated", category=FutureWarning)
     base = AutoModelForCausalLM.from_pretrained(model_dir, dtype="auto")
     model = PeftModel.from_pretrained(base, str(adapter)).merge_and_unload()
-    model.save_pretrained(str(merged))
-    tokenizer.save_pretrained(str(merged))
+    tmp = _partial(merged)
+    model.save_pretrained(str(tmp))
+    tokenizer.save_pretrained(str(tmp))
+    replace_dir(tmp, merged)
 
 
-def summary_of(trainer) -> dict:
-    """Losses and DPO reward figures from the trainer's log history."""
-    hist = [h for h in trainer.state.log_history if "loss" in h]
+def summary_of(history: list) -> dict:
+    """Losses and DPO reward figures from a trainer's log history."""
+    hist = [h for h in history if "loss" in h]
     out = {}
     if hist:
         out["first"] = {k: hist[0][k] for k in METRICS if k in hist[0]} | {"step": hist[0].get("step")}

@@ -9,11 +9,10 @@ considered step, the trainable ones and the skipped ones with their reason).
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 from ...errors import AdaptError
-from ..dataset import TRAINABLE, row_key
+from ..dataset import TRAINABLE, bad_rows_error, read_problem, read_rows, row_key, skipped_note
 from .encode import Encoded, Encoder, action_of
 
 
@@ -23,8 +22,11 @@ class DataError(AdaptError):
     exit_code = 1
 
 
-def read_pairs(data) -> list:
-    """The rows of DATA/pairs.jsonl, once `adapt train data` has finished (DATA/summary.json written)."""
+def read_pairs(data, vocab: int | None = None, skip_bad: bool = False, log=None) -> tuple:
+    """(rows, bad rows left out) of DATA/pairs.jsonl, once `adapt train data` has finished (DATA/summary.json
+    written). Every line is checked (`trainable_problem`, token ids below `vocab`): a bad one is a `BadRows`
+    error naming it by file:line, unless `skip_bad`, which leaves the bad rows out and reports them
+    through `log`."""
     d = Path(data)
     pairs, summary = d / "pairs.jsonl", d / "summary.json"
     if not pairs.is_file():
@@ -32,13 +34,47 @@ def read_pairs(data) -> list:
     if not summary.is_file():
         raise DataError(f"--data {data}: `adapt train data` has not finished (no summary.json); run the same "
                         "command again to complete it")
-    rows = []
-    for n, line in enumerate(pairs.read_text(encoding="utf-8").splitlines(), 1):
+    rows, bad, torn = read_rows(pairs, lambda r: trainable_problem(r, vocab))
+    if torn:
+        bad.append((len(pairs.read_bytes().split(b"\n")), "a torn last line (no newline, not a row)"))
+    if bad and not skip_bad:
+        raise bad_rows_error(pairs, bad)
+    if bad and log:
+        log(skipped_note(pairs, bad))
+    return rows, len(bad)
+
+
+def trainable_problem(row, vocab: int | None = None) -> str | None:
+    """What makes a pairs.jsonl row unusable for training (the dataset contract, the prompt's messages,
+    the completions' `Action: ` form, the student's token ids within the vocabulary), or None."""
+    why = read_problem(row)
+    if why:
+        return why
+    prompt = row["prompt"]
+    if not isinstance(prompt, list) or not prompt or not all(
+            isinstance(m, dict) and isinstance(m.get("role"), str) and isinstance(m.get("content"), str) for m in prompt):
+        return "prompt must be a non-empty list of {role, content} messages"
+    for name in ("chosen", "rejected") if row["chosen"] is not None else ("rejected",):
         try:
-            rows.append(json.loads(line))
-        except ValueError:
-            raise DataError(f"--data {data}: pairs.jsonl line {n} is not JSON") from None
-    return rows
+            action_of(row[name] if isinstance(row[name], list) else None)
+            if not isinstance(row[name][-1]["content"], str):
+                raise ValueError("its content must be text")
+        except (ValueError, TypeError, KeyError, AttributeError) as exc:
+            return f"{name}: {exc}"
+    if not isinstance(row["teacher_action"], str):
+        return "teacher_action must be text"
+    return _ids_problem(row.get(GENERATED), vocab)
+
+
+def _ids_problem(ids, vocab: int | None) -> str | None:
+    if ids is None:
+        return None
+    if not isinstance(ids, list) or not ids or not all(isinstance(t, int) and not isinstance(t, bool) for t in ids):
+        return f"{GENERATED} must be a non-empty list of token ids"
+    out = [t for t in ids if t < 0 or (vocab is not None and t >= vocab)]
+    if out:
+        return f"{GENERATED} holds {len(out)} id(s) outside the vocabulary 0..{(vocab or 1) - 1} (first: {out[0]})"
+    return None
 
 
 GENERATED = "rejected_token_ids"  # the student's generated ids, laid out as TRL's completion (training-data.md)

@@ -13,6 +13,8 @@ steps, losses, reward margins, seconds per step).
 from __future__ import annotations
 
 import json
+import math
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -20,7 +22,8 @@ from ...errors import AdaptError
 from .config import as_dict
 from .encode import Encoder, check_lengths, key_text
 
-RESUMABLE = ("max_steps", "epochs", "save_steps", "logging_steps", "threads", "long_rows", "out", "allow_eval_seeds")
+RESUMABLE = ("max_steps", "epochs", "save_steps", "logging_steps", "threads", "long_rows", "out", "skip_bad_rows",
+             "allow_eval_seeds")
 
 
 class TrainError(AdaptError):
@@ -49,18 +52,53 @@ def load_tokenizer(model: str):
     return tok
 
 
-def prepare(method: str, s, tokenizer, spec=None) -> Prepared:
-    """The method's rows from `s.data`, every one length-checked against `s.max_length` (`spec`: the spec
-    directory STaR-GATE replays its rollouts in)."""
+def vocabulary(model: str, tokenizer=None) -> int | None:
+    """The ids the model embeds: its config.json's `vocab_size` (read without loading anything), else the
+    tokenizer's size, else None (only negative ids are then refused)."""
+    try:
+        config = json.loads((Path(model) / "config.json").read_text())
+        size = config.get("vocab_size") or (config.get("text_config") or {}).get("vocab_size")
+    except (OSError, ValueError, AttributeError):
+        size = None
+    if isinstance(size, int) and size > 0:
+        return size
+    return len(tokenizer) if tokenizer is not None else None
+
+
+@dataclass(frozen=True)
+class Data:
+    """A method's input as read and checked: the rows of pairs.jsonl (or STaR-GATE's rollout records) and
+    the bad rows `--skip-bad-rows` left out."""
+
+    rows: list
+    bad: int = 0
+
+
+def read_data(method: str, s, log=None, tokenizer=None) -> Data:
+    """`s.data` read and every line checked before any model loads (a bad one stops the run naming its
+    file:line, unless `s.skip_bad_rows`; `log`: where the rows left out are reported)."""
     from . import rows as R
 
+    if method == "star-gate":
+        from .stargate import read_rollouts_counted
+
+        return Data(*read_rollouts_counted(s.data, s.agent, s.skip_bad_rows, log))
+    return Data(*R.read_pairs(s.data, vocabulary(s.model, tokenizer), s.skip_bad_rows, log))
+
+
+def prepare(method: str, s, tokenizer, spec=None, log=None, data: Data | None = None) -> Prepared:
+    """The method's rows from `data` (default: `read_data`), every row length-checked against `s.max_length`
+    (`spec`: the spec directory STaR-GATE replays its rollouts in)."""
+    from . import rows as R
+
+    data = data or read_data(method, s, log, tokenizer)
     enc = Encoder(tokenizer)
     left: dict = {}
     if method == "star-gate":
         from ...compiler import load_domain
-        from .stargate import read_rollouts, split_of, stargate_rows, top_fraction
+        from .stargate import split_of, stargate_rows, top_fraction
 
-        records = read_rollouts(s.data, s.agent)
+        records = data.rows
         kept = top_fraction(records, s.top)
         domain = load_domain(spec)
         try:
@@ -68,10 +106,10 @@ def prepare(method: str, s, tokenizer, spec=None) -> Prepared:
         except (KeyError, TypeError) as exc:  # a record without a rollout record's fields
             raise R.DataError(f"--data {s.data}: a rollout record is malformed ({type(exc).__name__}: {exc})") from None
         left = {"rollouts": len(records), "rollouts_kept": len(kept), "rollouts_not_replayable": bad,
-                "split": split_of(domain, records)}
+                "bad_rows_left_out": data.bad, "split": split_of(domain, records)}
         seeds = {r["seed"] for r in kept}
     else:
-        pairs = R.read_pairs(s.data)
+        pairs = data.rows
         build = {"dpo": R.dpo_rows, "sft": R.sft_rows,
                  "no-reflection": lambda p, e: R.no_reflection_rows(p, e, s.no_gain)}[method]
         try:
@@ -79,7 +117,7 @@ def prepare(method: str, s, tokenizer, spec=None) -> Prepared:
         except (KeyError, TypeError, ValueError) as exc:  # a row without the dataset contract's fields
             raise R.DataError(f"--data {s.data}: a row of pairs.jsonl is malformed ({type(exc).__name__}: "
                               f"{exc}); rebuild it with `adapt train data`") from None
-        left = {"pairs": len(pairs)}
+        left = {"pairs": len(pairs) + data.bad, "bad_rows_left_out": data.bad}
         seeds = {r.get("seed") for r in pairs}
     if not encoded:
         raise TrainError(f"--data {s.data}: no rows to train {method} on ({json.dumps(left)})")
@@ -143,9 +181,63 @@ def write_settings(s, out: Path) -> None:
     (out / "settings.json").write_text(json.dumps(_recorded(s), indent=2) + "\n")
 
 
+def _state(ckpt: Path) -> dict | None:
+    try:
+        state = json.loads((ckpt / "trainer_state.json").read_text())
+    except (OSError, ValueError):
+        return None
+    return state if isinstance(state, dict) and isinstance(state.get("global_step"), int) else None
+
+
 def last_checkpoint(out: Path) -> str | None:
-    """The newest complete checkpoint under OUT/checkpoints (its trainer state written), or None."""
+    """The newest complete checkpoint under OUT/checkpoints (its trainer state written whole), or None."""
     root = out / "checkpoints"
-    done = [p for p in root.glob("checkpoint-*") if (p / "trainer_state.json").is_file()
-            and p.name.split("-")[-1].isdigit()]
+    done = [p for p in root.glob("checkpoint-*") if p.name.split("-")[-1].isdigit() and _state(p) is not None]
     return str(max(done, key=lambda p: int(p.name.split("-")[-1]))) if done else None
+
+
+def checkpoint_step(checkpoint: str | None) -> int:
+    """The optimizer steps a checkpoint holds (0 for none)."""
+    return _state(Path(checkpoint))["global_step"] if checkpoint else 0
+
+
+def finished(s, out: Path) -> dict | None:
+    """OUT/train.json's content when OUT holds a finished run that reached the steps `s` asks for (its
+    `--max-steps`, or its epochs over the rows the run trained on), else None. train.json is written
+    last, after the adapter and the merged model: it marks a run done (with both still there)."""
+    from .engine import steps_per_epoch
+
+    try:
+        result = json.loads((out / "train.json").read_text())
+        steps, rows = result["steps"], result["rows"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    planned = s.max_steps or math.ceil(s.epochs * steps_per_epoch(s, rows))
+    whole = (out / "adapter").is_dir() and (out / "merged" / "config.json").is_file()  # else saved again
+    return result if steps >= planned and whole else None
+
+
+def trim_log(out: Path, step: int) -> None:
+    """Keep in OUT/log.jsonl only the lines of steps up to `step` (the checkpoint a run resumes from; 0: none):
+    the steps after it are trained and logged again, once."""
+    path = out / "log.jsonl"
+    if not path.is_file():
+        return
+    keep = []
+    for line in path.read_text(encoding="utf-8", errors="replace").splitlines():
+        try:
+            entry = json.loads(line)
+        except ValueError:
+            continue  # a torn line (a kill mid-write)
+        if isinstance(entry, dict) and isinstance(entry.get("step"), int) and entry["step"] <= step:
+            keep.append(line + "\n")
+    tmp = path.with_name("log.jsonl.tmp")
+    tmp.write_text("".join(keep), encoding="utf-8")
+    os.replace(tmp, path)
+
+
+def write_result(out: Path, result: dict) -> None:
+    """OUT/train.json, written whole or not at all (the run's done-marker)."""
+    tmp = out / "train.json.tmp"
+    tmp.write_text(json.dumps(result, indent=2) + "\n")
+    os.replace(tmp, out / "train.json")

@@ -4,7 +4,9 @@
     kept = top_fraction(records, 1 / 3)
     rows, skipped = stargate_rows(domain, kept, encoder, budget=2000)
 
-Selection: the records of one agent, or of several named with commas (error records left out), sorted by satisfaction rate, best first (ties:
+Selection: the records of one agent, or of several named with commas (error records left out; a line
+that is not a record stops the run, naming its file:line, unless told to skip bad rows), sorted by
+satisfaction rate, best first (ties:
 more task components completed first, then by persona, task, seed: a weak student leaves most episodes at
 0%, and among those the ones that got further are the better examples), the first round(n * top) of them
 (at least one). Each kept record is replayed in
@@ -18,11 +20,11 @@ target is the action the student took, then the end token.
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 from ...llm.chat import fit
 from ...llm.prompts import PromptBuilder
+from ..dataset import bad_rows_error, read_rows, skipped_note
 from ..replay import replay
 from .encode import Encoded, Encoder
 from .rows import DataError
@@ -46,23 +48,50 @@ def agent_names(agent: str) -> list:
     return [a.strip() for a in agent.split(",") if a.strip()]
 
 
-def read_rollouts(data, agent: str = "planner") -> list:
+def read_rollouts(data, agent: str = "planner", skip_bad: bool = False, log=None) -> list:
     """The episode records of `agent` (one name, or several separated by commas: `oracle,oracle-ask`) in a
-    rollout results file or a directory of them (error records and unreadable lines left out)."""
+    rollout results file or a directory of them (other agents' records and error records left out). A
+    line that is not a record (not JSON, not an object, a record of `agent` without the fields a replay
+    needs) is a `BadRows` error naming it by file:line, unless `skip_bad`: then it is left out and the
+    count reported through `log`."""
+    return read_rollouts_counted(data, agent, skip_bad, log)[0]
+
+
+def read_rollouts_counted(data, agent: str = "planner", skip_bad: bool = False, log=None) -> tuple:
+    """(records, bad lines left out) as `read_rollouts` reads them."""
     agents = set(agent_names(agent))
-    out = []
+    out, skipped = [], 0
     for f in _files(data):
-        for line in f.read_text(encoding="utf-8").splitlines():
-            try:
-                r = json.loads(line)
-            except ValueError:
-                continue
-            if isinstance(r, dict) and r.get("agent") in agents and "steps" in r and "error" not in r \
-                    and r.get("satisfaction_rate") is not None:
-                out.append(r)
+        rows, bad, torn = read_rows(f, lambda r: _record_problem(r, agents))
+        if torn:
+            bad.append((len(f.read_bytes().split(b"\n")), "a torn last line (no newline, not a record: a kill "
+                        "mid-write; `adapt rollout` with the same --out repairs it)"))
+        if bad and not skip_bad:
+            raise bad_rows_error(f, bad)
+        if bad and log:
+            log(skipped_note(f, bad))
+        skipped += len(bad)
+        out += [r for r in rows if r.get("agent") in agents and "error" not in r
+                and r["satisfaction_rate"] is not None]
     if not out:
         raise DataError(f"--data {data}: no finished rollouts of agent '{agent}'")
-    return out
+    return out, skipped
+
+
+def _record_problem(r, agents: set) -> str | None:
+    """What makes a results line unusable: not an object, or a finished record of one of `agents` without
+    a replay's fields (persona, task, seed, steps with their actions, satisfaction_rate)."""
+    if not isinstance(r, dict):
+        return f"a record must be a JSON object (got {type(r).__name__})"
+    if r.get("agent") not in agents or "error" in r:
+        return None
+    for k, kind in (("persona", str), ("task", str), ("seed", int), ("steps", list),
+                    ("satisfaction_rate", (int, float, type(None)))):
+        if not isinstance(r.get(k), kind) or isinstance(r.get(k), bool) or k not in r:
+            return f"a record of agent '{r['agent']}' needs {k} ({getattr(kind, '__name__', 'a number')})"
+    if not all(isinstance(s, dict) and isinstance(s.get("action"), str) for s in r["steps"]):
+        return "every step of a record needs its action (text)"
+    return None
 
 
 def top_fraction(records: list, top: float) -> list:
