@@ -15,8 +15,9 @@ before the recipe; `at="start"`: as the first action) and answered A or B. The p
 step where the two plans' actions differ: the histories up to it are the same but for the answer.
 
 "Follows" is scored, no generation: under answer A, the model's log-probability of A's action beats that of
-B's action (and the reverse under B). A model that ignores the answer sees two identical prompts and
-prefers the same action in both, so it follows in exactly one of the two: 50% of prompts, 0% of pairs.
+B's action (and the reverse under B; a tie follows neither). A model that ignores the answer sees two
+identical prompts and prefers the same action in both, so it follows in exactly one of the two: 50% of
+prompts, 0% of pairs.
 """
 
 from __future__ import annotations
@@ -76,24 +77,29 @@ def asked_for(domain, choice, answer: str):
     """The option(s) of `choice` an answer asks for (the always-ask agent's reading), or None when the
     answer names none of its options by their own words (only by a tag such as `savory`: it is not about
     this choice)."""
-    answer = with_stems(answer)
+    answer = readable(answer)
     said = words(answer)
     if not any(option_words(domain, v)[0] & said for v in choice.values):
         return None
     return interpret(domain, choice, answer)
 
 
-_PARTICIPLE = re.compile(r"\b[a-z]{4,}ed\b")
+_PARTICIPLE = re.compile(r"\b[a-z]{3,}ed\b")
+_FREE = re.compile(r"\b([a-z]+)-free\b", re.I)
 
 
-def with_stems(answer: str) -> str:
-    """The answer with each past participle followed by the verbs it may come from, so that options named
-    by their verb (`scramble`, `poach`, `fry`) are read from `scrambled`, `poached`, `fried`."""
+def readable(answer: str) -> str:
+    """The answer as the always-ask reading should take it: each past participle followed by the verbs it
+    may come from (options named by their verb, `scramble`, `poach`, `fry`, are read from `scrambled`,
+    `poached`, `fried`), and `X-free Y` said as `Y ... free of X` (the reading negates the words after
+    `free`: lactose-free cheese is cheese, not no cheese)."""
     def stems(m: re.Match) -> str:
         word = m.group(0)
         if word.endswith("ied"):
             return f"{word} {word[:-3]}y"
         return f"{word} {word[:-1]} {word[:-2]}"
+    frees = _FREE.findall(answer)
+    answer = _FREE.sub("", answer) + "".join(f" Free of {x}." for x in frees)
     return _PARTICIPLE.sub(stems, answer)
 
 
@@ -159,7 +165,7 @@ def trace(domain, task, persona, seed: int, assignment: dict, question: str, key
 
 def _diverge(a: list, b: list):
     """The first index at which two traces take different actions (None if they never do)."""
-    return next((i for i, (x, y) in enumerate(zip(a, b)) if x[2] != y[2]), None)
+    return next((i for i, (x, y) in enumerate(zip(a, b, strict=False)) if x[2] != y[2]), None)
 
 
 # ------------------------------------------------------------------ pairs
@@ -237,6 +243,14 @@ def build_pairs(domain, tasks=None, personas=None, seeds=(0,), at: str = "recipe
     return out
 
 
+def spread(pairs: list, limit: int | None) -> list:
+    """At most `limit` pairs taken evenly across the list (every task, choice and persona keeps its share);
+    all of them when `limit` is None or 0."""
+    if not limit or len(pairs) <= limit:
+        return list(pairs)
+    return [pairs[i * len(pairs) // limit] for i in range(limit)]
+
+
 # ------------------------------------------------------------------ scoring
 Scorer = Callable[[Prompt, tuple], tuple]  # (prompt, (action_a, action_b)) -> (score_a, score_b)
 
@@ -283,13 +297,23 @@ class ProbeResult:
         return self.prompts_followed / (2 * self.pairs) if self.pairs else 0.0
 
     @property
+    def share_se(self) -> float:
+        """The standard error of `share`, over pairs (each pair's share of its two prompts)."""
+        n = len(self.scores)
+        if n < 2:
+            return 0.0
+        xs = [(s.follows_a + s.follows_b) / 2 for s in self.scores]
+        mean = sum(xs) / n
+        return (sum((x - mean) ** 2 for x in xs) / (n - 1) / n) ** 0.5
+
+    @property
     def pair_share(self) -> float:
         """The share of pairs that follow both answers (ignoring answers: 0%)."""
         return self.pairs_followed / self.pairs if self.pairs else 0.0
 
     def summary(self) -> dict:
         """The figures as JSON-ready values."""
-        return {"pairs": self.pairs, "share": self.share, "ignoring_share": IGNORING_SHARE,
+        return {"pairs": self.pairs, "share": self.share, "share_se": self.share_se, "ignoring_share": IGNORING_SHARE,
                 "pair_share": self.pair_share, "ignoring_pair_share": IGNORING_PAIRS,
                 "prompts_followed": self.prompts_followed, "pairs_followed": self.pairs_followed,
                 "mean_shift": self.mean_shift}
@@ -314,12 +338,17 @@ def backend_scorer(backend) -> Scorer:
     from .backend import ModelError, continuation_ids
     from .chat import count, render
 
+    seen: dict = {}  # one prompt is often the contrast of several pairs
+
     def score(prompt: Prompt, actions: tuple) -> tuple:
         text = render(backend.tokenizer, prompt)
+        if (text, actions) in seen:
+            return seen[text, actions]
         context = getattr(backend, "context", None)
         need = count(backend.tokenizer, text) + max(len(continuation_ids(backend.tokenizer, a)) for a in actions)
         if context and need > context:
             raise ModelError(f"a probe prompt and its action take {need} tokens, more than the model's context "
                              f"({context}); use --at recipe (shorter histories) or a model with a longer context")
-        return tuple(sum(s.logprobs) for s in backend.score(text, list(actions)))
+        out = seen[text, actions] = tuple(sum(s.logprobs) for s in backend.score(text, list(actions)))
+        return out
     return score
