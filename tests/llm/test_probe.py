@@ -59,6 +59,7 @@ def test_reading_of_answers(domain):
 
     points = dict(choice_points(domain, all_recipes(domain, domain.task["eggs"])))
     assert asked_for(domain, points["eggs.style"], "I like my eggs fried.") == "fry"
+    assert asked_for(domain, points["eggs.style"], "Poached, please.") == "poach"
     assert "swiss_cheese" in asked_for(domain, points["eggs.fillings"], "Add some lactose-free cheese to my eggs.")
     assert asked_for(domain, points["eggs.style"], "Serve breakfast on the patio.") is None  # not about the choice
 
@@ -158,3 +159,5 @@ def test_cli_unknown_model_is_one_line(capsys, tmp_path):
     assert main(["probe", "answers", "--model", str(tmp_path / "nope")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "nope: no such model directory" in err[0]
+    assert main(["probe", "answers", "--model", "student", "--limit", "-1"]) == 2
+    assert "--limit must be 0" in capsys.readouterr().err

@@ -84,7 +84,7 @@ def asked_for(domain, choice, answer: str):
     return interpret(domain, choice, answer)
 
 
-_PARTICIPLE = re.compile(r"\b[a-z]{3,}ed\b")
+_PARTICIPLE = re.compile(r"\b[a-z]{3,}ed\b", re.I)
 _FREE = re.compile(r"\b([a-z]+)-free\b", re.I)
 
 
