@@ -20,6 +20,7 @@ examples:
   adapt play --task eggs --persona juan     play an episode in the terminal
   adapt replay --task eggs --persona juan --full-scene actions.txt --json
   adapt view runs/demo.jsonl --out report.html   the episodes as one HTML page
+  adapt probe answers --model student       does the model's next action follow the user's answer?
 """
 
 
@@ -69,13 +70,14 @@ def build_parser() -> argparse.ArgumentParser:
         "evaluate preference satisfaction.", epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     _add_validate(sub)
-    from . import author, episode, grammar, runs, serve_env, train, train_grpo, view
+    from . import author, episode, grammar, probe, runs, serve_env, train, train_grpo, view
 
     author.add_commands(sub)
     episode.add_commands(sub)
     runs.add_commands(sub)
     grammar.add_commands(sub)
     view.add_commands(sub)
+    probe.add_commands(sub)
     serve_env.add_commands(sub)
     train.add_commands(sub)  # owns the `train` group
     train_grpo.add_commands(sub)  # after any module that registers the `train` group
