@@ -221,6 +221,10 @@ def test_resume_after_kill_and_provenance(tiny, tmp_path):
     assert summary["scene_seeds"] == [100] and summary["max_steps"] == 12 and {r["seed"] for r in rows} == {100}
     assert "0 lost a question or answer" in done.stdout
     _check_rejected_ids(tiny, rows, summary)
+    before = pairs.read_bytes(), (out / "summary.json").read_bytes()
+    again = subprocess.run(_cmd(tiny, out), capture_output=True, text=True, timeout=120)  # a finished build: done
+    assert again.returncode == 0 and "already holds this build" in again.stderr and "steps:" in again.stdout
+    assert (pairs.read_bytes(), (out / "summary.json").read_bytes()) == before
 
 
 def _check_rejected_ids(tiny, rows, summary):

@@ -83,6 +83,32 @@ def _check_data_args(args) -> None:
               f"--device {args.device}")
 
 
+def _recorded_selection(args, domain, split, personas, tasks, seeds) -> dict:
+    """What defines a build of `adapt train data` (summary.json's `selection`): a rerun with the same is done."""
+    return {"spec_hash": domain.spec_hash, "student": str(args.student), "teacher_model": args.teacher_model,
+            "split": split, "personas": list(personas), "tasks": list(tasks), "seeds": list(seeds),
+            "interactions": args.interactions, "questions": args.questions, "eps1": args.eps1, "eps2": args.eps2,
+            "max_length": args.max_length, "max_steps": args.max_steps, "skip_after_failures": args.skip_after_failures,
+            "temperature": args.temperature, "sample_seed": args.sample_seed}
+
+
+def _already_built(store, chosen: dict) -> bool:
+    """Whether OUT holds a finished build of this very selection (then say so: nothing is run again)."""
+    from ..training.dataset import mix_line
+
+    path = store.out / "summary.json"
+    try:
+        summary = json.loads(path.read_text()) if path.is_file() else {}
+    except (OSError, ValueError):
+        return False
+    if not isinstance(summary, dict) or summary.get("selection") != chosen:
+        return False
+    print(f"adapt: {store.out} already holds this build ({summary.get('pairs')} steps, {path}); nothing to do "
+          "(other personas, tasks or seeds into the same --out add to it)", file=sys.stderr)
+    print(mix_line(summary))
+    return True
+
+
 def _cmd_data(args) -> int:
     _check_data_args(args)
     from ..training.dataset import PairStore
@@ -97,6 +123,9 @@ def _cmd_data(args) -> int:
 
     domain = load_domain(args.spec)
     split, personas, tasks, seeds = _selection(args, domain)
+    chosen = _recorded_selection(args, domain, split, personas, tasks, seeds)
+    if _already_built(store, chosen):
+        return 0
     backend = TransformersBackend(args.student, device=args.device, batch_size=args.batch,
                                   temperature=args.temperature, seed=args.sample_seed)
     teacher = _teacher(args, domain, backend)
@@ -136,6 +165,7 @@ def _cmd_data(args) -> int:
     summary["max_steps"] = settings.max_steps
     summary["max_length"] = settings.max_length
     summary["skip_after_failures"] = settings.skip_after_failures
+    summary["selection"] = chosen  # a rerun of the same selection is done (`_already_built`)
     (store.out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     print(mix_line(summary))
     print("time: " + ", ".join(f"{k} {v:.1f}s" for k, v in summary["seconds"].items()))
