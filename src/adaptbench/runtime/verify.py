@@ -92,6 +92,7 @@ class Ctx:
         self._placed: dict = {}  # dish key -> the pieces placed on it, as a dish of their own
         self._kinds: dict = {}  # (dish key, component) -> sweet | savory | beverage
         self._sides: dict = {}  # dish keys (or None) -> their sides
+        self._vessels: dict = {}  # class expression -> the scene's entities it matches (for `free`)
 
     def completes(self, dish: Dish, comps) -> bool:
         """Whether a dish completes any of the components (each checked once, on demand)."""
@@ -437,9 +438,14 @@ def _p_free(node: A.Pred, domain):
         dishes = ctx.subject(node.subject, it)
         if not dishes:
             return Outcome(False, f"no {node.subject} dish was served")
+        cands = ctx._vessels.get(node.args[0])
+        if cands is None:
+            w = ctx.world
+            taken = {d.container for d in ctx.table if d.container is not None}
+            cands = ctx._vessels[node.args[0]] = [e for e in sorted(w.scene.present) if e not in taken and f(w, e)]
         outcomes = []
         for d in dishes:
-            hits, when = _free(ctx, d, f)
+            hits, when = _free(ctx, d, cands)
             why = (f"{', '.join(hits)} ({text}) free at step {when}, when {d.key}'s vessel was chosen" if hits
                    else f"no {text} free at step {when}, when {d.key}'s vessel was chosen")
             outcomes.append(Outcome(bool(hits), why, (when,)))
@@ -447,13 +453,12 @@ def _p_free(node: A.Pred, domain):
     return check
 
 
-def _free(ctx: Ctx, dish: Dish, f) -> tuple:
-    """(the free objects matching `f` for `dish`, the step its vessel was chosen)."""
+def _free(ctx: Ctx, dish: Dish, cands: list) -> tuple:
+    """(the free ones among `cands` (matching vessels not serving at the table) for `dish`, the step its
+    vessel was chosen)."""
     w = ctx.world
     when = w.filled_at(dish.container) if dish.container is not None else dish.served_step
-    taken = {d.container for d in ctx.table if d.container is not None}
-    hits = [e for e in sorted(w.scene.present) if e not in taken and f(w, e)
-            and not (w.held_food(e, when) and not w.holds_food(e))]
+    hits = [e for e in cands if not (w.held_food(e, when) and not w.holds_food(e))]
     return hits, when
 
 
