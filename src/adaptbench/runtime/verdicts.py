@@ -67,22 +67,7 @@ def _per_dish_cond(domain: CompiledDomain, rule: A.Rule) -> bool:
 
 def _condition_per_dish(rule: A.Rule) -> bool:
     cond = rule.scope.cond if rule.scope is not None else None
-    return cond is not None and any(n.subject in ("it", "sides") for n in _outer_preds(cond))
-
-
-def _outer_preds(node):
-    """The predicates and quantifiers of a condition outside any `each` body: inside one, `it` is the dish
-    `each` binds, not the scope's (`if not each meal (...)` is one condition about the whole meal)."""
-    if isinstance(node, A.Pred | A.Each):
-        yield node
-    elif isinstance(node, A.Not):
-        yield from _outer_preds(node.item)
-    elif isinstance(node, A.AllOf | A.AnyOf):
-        for x in node.items:
-            yield from _outer_preds(x)
-    elif isinstance(node, A.IfElse):
-        for x in (node.cond, node.then, node.other):
-            yield from _outer_preds(x)
+    return cond is not None and any(isinstance(n, A.Pred) and n.subject in ("it", "sides") for n in A.walk(cond))
 
 
 def evaluate(domain: CompiledDomain, world: World, task: Task, persona: Persona | None) -> Evaluation:
