@@ -356,3 +356,16 @@ def test_a_spatula_in_the_pan_a_whole_item_was_heated_in_took_part(domain):
 
     env, results = run(domain, actions, task="eggs")
     assert all(r.ok for r in results) and "spatula_2" in env.world.used
+
+
+@pytest.mark.parametrize("rule,expected", [
+    # in `for all`, `sides` is the whole table: no milk anywhere, nothing to say, finished or not
+    ("for all if meal has milk or sides has milk: meal has no (milk & !dairy) and sides has no (milk & !dairy)",
+     "inapplicable"),
+    # about a dish's own sides: the paper's rule first, an unfinished dish is violated
+    ("for egg_dish if sides has milk: sides has no (milk & !dairy)", "violated"),
+    # `it` inside an `each` of the condition: per dish, so the unfinished eggs are violated
+    ("for all if not each meal (not it served in fancy): each meal (it served in fancy)", "violated"),
+])
+def test_which_conditions_wait_for_completion(domain, rule, expected):
+    assert judge(domain, FIND, rule, task="eggs").verdict == expected
