@@ -74,7 +74,8 @@ _SAMPLES = {"has": "it has milk", "has_no": "it has no milk", "has_only": "it ha
             "made_with": "it made with milk", "topped_with": "it topped with milk", "made_by": "it made by folding",
             "cooked_in": "it cooked in pan", "adds_before": "it adds milk before cereal",
             "served_at": "it served at patio", "served_in": "it served in mug",
-            "served_before": "coffee served before food", "available": "available toaster", "uses": "uses toaster",
+            "served_before": "coffee served before food", "available": "available toaster",
+            "free": "free (fancy & plate) for it", "uses": "uses toaster",
             "uses_in": "it uses toaster", "task_has": "task has toast", "made": "made toast",
             "contains": "y contains x", "on": "x on stove", "within": "x within stove", "holds": "x holds water"}
 
@@ -89,3 +90,35 @@ def test_quantifiers_parse_to_their_node():
 def test_each_declared_syntax_parses_to_its_predicate(name):
     for alias, _kinds in P.PREDICATES[name].syntax:
         assert parse_rule(_SAMPLES[alias]).expr.op == name, alias
+
+
+@pytest.mark.parametrize("rule,message", [
+    ("for eggs: not free (stainless | table_0) for it", "not a movable container"),
+    ("for eggs: not free milk for it", "not a movable container"),
+    ("for eggs: not free heated plate for it", "'heated' describes an ingredient"),
+    ("for eggs: not free (plate & cookware) for it", "matches no object"),
+])
+def test_free_names_vessels_or_is_d112(domain, rule, message):
+    """`free X for S` is about vessels: a class that also matches furniture or food is a located D112."""
+    from adaptbench.compiler.build import Draft
+
+    draft = Draft()
+    checks._check_rule(draft, parse_rule(rule), "preference", _names(domain))
+    assert [d.code for d in draft.diags] == ["D112"], draft.diags
+    assert message in draft.diags[0].message and draft.diags[0].col > 1
+
+
+def _names(domain):
+    from adaptbench.compiler.build import Draft
+
+    draft = Draft(entities=list(domain.entities), substances=list(domain.substances),
+                  tags={t: "" for e in domain.entities for t in e.tags} | {t: "" for s in domain.substances for t in s.tags},
+                  categories={e.category: "" for e in domain.entities} | {s.category: "" for s in domain.substances},
+                  components=list(domain.components))
+    return checks.Names(draft)
+
+
+def test_free_parses_with_its_subject():
+    rule = parse_rule("for all: each meal (it served in fancy or not free (fancy & plate) for it)")
+    free = rule.expr.expr.items[1].item
+    assert (free.op, free.subject) == ("free", "it")

@@ -305,3 +305,67 @@ def test_each_parses_and_is_checked(domain):
     assert A.from_data(A.to_data(rule)) == rule
     plain = parse_rule("for toast: each it (it has butter)").expr
     assert isinstance(plain, A.Each) and plain.cls is None
+
+
+# ---- free: availability that counts use (issue 30)
+FANCY_EGGS = FIND + PAN + ["Turn on stove_0", "scramble items in pan_1 to get scrambled_eggs",
+                           "Move scrambled_eggs from pan_1 to plate_8", "Move plate_8 to table_1"]
+SIDE_PLAIN = ["Move avocado_0 to plate_2", "Move plate_2 to table_1"]
+DESSERT_ON_9 = ["Look for strawberries", "Move strawberry from strawberries_box_0 to plate_9"]
+FREE_PLATE = "for egg_dish: each meal (it served in fancy or not (it served in plate and free (fancy & plate) for it))"
+
+
+@pytest.mark.parametrize("name,actions,rule,expected", [
+    ("a plain side plate while the second fancy plate stood empty", FANCY_EGGS + SIDE_PLAIN, FREE_PLATE, "violated"),
+    ("the second fancy plate serves the dessert: the plain side plate is all there was",
+     FANCY_EGGS + DESSERT_ON_9 + ["Move plate_9 to table_1"] + SIDE_PLAIN, FREE_PLATE, "satisfied"),
+    ("the dessert plate served later is in use even though it was empty when the side was plated",
+     FANCY_EGGS + SIDE_PLAIN + DESSERT_ON_9 + ["Move plate_9 to table_1"], FREE_PLATE, "satisfied"),
+    ("a fancy plate holding food that never reaches the table was idle: free",
+     FANCY_EGGS + DESSERT_ON_9 + SIDE_PLAIN, FREE_PLATE, "violated"),
+    ("the dish's own vessel is not 'another' free one", FANCY_EGGS, "for egg_dish: free (fancy & plate) for it",
+     "satisfied"),
+    ("no fancy bowl taken: both are free for the eggs", FANCY_EGGS, "for egg_dish: free (fancy & bowl) for it",
+     "satisfied"),
+])
+def test_free_counts_use(domain, name, actions, rule, expected):
+    v = judge(domain, actions, rule, task="eggs")
+    assert v.verdict == expected, f"{name}: {v.verdict} ({v.reason})"
+
+
+def test_free_is_false_when_every_matching_vessel_is_taken(domain):
+    actions = FANCY_EGGS + DESSERT_ON_9 + ["Move plate_9 to table_1"]
+    v = judge(domain, actions, "for egg_dish: free (fancy & plate) for it", task="eggs")
+    assert v.verdict == "violated" and "no fancy & plate free" in v.reason
+
+
+def test_the_fill_log_dates_when_a_vessel_began_to_hold_food(domain):
+    from .helpers import run
+
+    env, _ = run(domain, FANCY_EGGS + DESSERT_ON_9, task="eggs")
+    w, step = env.world, FANCY_EGGS.index("Move scrambled_eggs from pan_1 to plate_8") + 1
+    assert w.filled_at("plate_8") == step and w.held_food("plate_8", step) and not w.held_food("plate_8", step - 1)
+    assert w.held_food("pan_1", step - 1) and not w.held_food("pan_1", step)  # emptied onto the plate
+    assert not w.held_food("plate_2", step) and w.filled_at("plate_2") == 0  # never used
+
+
+def test_a_spatula_in_the_pan_a_whole_item_was_heated_in_took_part(domain):
+    actions = FIND + ["Look for spatula", "Move pan_1 to stove_0", "Move spatula_2 to pan_1", "Move tomato_0 to pan_1",
+                      "Turn on stove_0", "Move tomato_0 to plate_2", "Move plate_2 to table_1"]
+    from .helpers import run
+
+    env, results = run(domain, actions, task="eggs")
+    assert all(r.ok for r in results) and "spatula_2" in env.world.used
+
+
+@pytest.mark.parametrize("rule,expected", [
+    # in `for all`, `sides` is the whole table: no milk anywhere, nothing to say, finished or not
+    ("for all if meal has milk or sides has milk: meal has no (milk & !dairy) and sides has no (milk & !dairy)",
+     "inapplicable"),
+    # about a dish's own sides: the paper's rule first, an unfinished dish is violated
+    ("for egg_dish if sides has milk: sides has no (milk & !dairy)", "violated"),
+    # `it` inside an `each` of the condition: per dish, so the unfinished eggs are violated
+    ("for all if not each meal (not it served in fancy): each meal (it served in fancy)", "violated"),
+])
+def test_which_conditions_wait_for_completion(domain, rule, expected):
+    assert judge(domain, FIND, rule, task="eggs").verdict == expected

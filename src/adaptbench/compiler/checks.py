@@ -12,6 +12,7 @@ from . import ast as A
 from .build import Draft
 from .diagnostics import did_you_mean
 from .engine import check_effect_values, check_engine, check_persona_numbers, check_splits
+from .lint import Item, matches
 from .model import Where
 from .predicates import QUANTIFIERS, ops_for
 from .recipes import check_recipe_steps
@@ -51,6 +52,23 @@ class Names:
         self.groups = {"all", "food"} | kinds | {g for c in draft.components for g in c.groups}
         self.styles = {s.id for s in draft.styles}
         self.verb_groups = set(draft.verb_groups) | set(draft.processes)
+        self.items = [Item(s.id, s.category, frozenset(s.tags)) for s in draft.substances]
+        self.items += [Item(e.id, e.category, frozenset(e.tags), e.id) for e in draft.entities if e.kind != "room"]
+        self.vessels = {e.id for e in draft.entities if e.kind == "movable" and "container" in e.tags}
+        self.rooms = _rooms(draft.entities)
+
+
+def _rooms(entities: list) -> dict:
+    """Entity id -> the room it is in (for class names that are rooms)."""
+    ids = {e.id: e for e in entities}
+    out = {}
+    for e in entities:
+        loc, seen = e, set()
+        while loc.location is not None and loc.location in ids and loc.id not in seen:
+            seen.add(loc.id)
+            loc = ids[loc.location]
+        out[e.id] = loc.id
+    return out
 
 
 def check_all(draft: Draft) -> None:
@@ -272,7 +290,28 @@ def _check_pred(node: A.Pred, context: str, names: Names, slots: dict, scoped: b
     for arg in node.args:
         if isinstance(arg, A.Node):
             out += _check_cls(arg, _cls_pool(node, context, names, slots))
+    if node.op == "free" and not out:
+        out += _check_vessels(node.args[0], names)
     return out
+
+
+def _check_vessels(cls, names: Names) -> list:
+    """`free X for S` asks about vessels: X names movable containers (plates, cups, pans), and only them."""
+    mod = next((n for n in A.walk(cls) if isinstance(n, A.ClsMod)), None)
+    if mod is not None:
+        return [(mod, "D112", f"'free' asks about vessels; '{mod.mod}' describes an ingredient: "
+                              f"write 'free {A.render_cls(mod.item)} for ...'")]
+    text = A.render_cls(cls)
+    hits = [i for i in names.items if matches(cls, i, names.rooms)]
+    if not hits:
+        return [(cls, "D112", f"'free {text} for ...' matches no object a dish could be served or cooked in "
+                              f"(e.g. 'fancy & plate', 'cookware & cast_iron')")]
+    bad = [i.name for i in hits if i.name not in names.vessels]
+    if bad:
+        return [(cls, "D112", f"'free {text} for ...' also matches {', '.join(sorted(bad)[:3])}, which "
+                              f"{'is' if len(bad) == 1 else 'are'} not a movable container (narrow it, e.g. "
+                              f"'{text} & dishware')")]
+    return []
 
 
 def _cls_pool(node: A.Pred, context: str, names: Names, slots: dict) -> tuple:

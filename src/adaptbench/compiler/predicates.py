@@ -53,6 +53,7 @@ PREDICATES = {p.name: p for p in (
     Predicate("served_in", _P, (("served_in", _SC),), ("S served in X",)),
     Predicate("served_before", _P, (("served_before", ("subject", "subject")),), ("S served before T",)),
     Predicate("available", _P, (("available", ("class",)),), ("available X",)),
+    Predicate("free", _P, (("free", ("class", "subject")),), ("free X for S",)),
     Predicate("uses", _P, (("uses", ("class",)), ("uses_in", _SC)), ("uses X", "S uses X")),
     Predicate("task_has", _P, (("task_has", ("name",)),), ("task has C",)),
     Predicate("made", _P, (("made", ("name",)),), ("made C",)),

@@ -78,6 +78,9 @@ class _ToAst(Transformer):
     def available(self, meta, c):
         return A.Pred(*_pos(meta), "available", None, (c[0],))
 
+    def free(self, meta, c):
+        return A.Pred(*_pos(meta), "free", str(c[1]), (c[0],))
+
     def uses(self, meta, c):
         return A.Pred(*_pos(meta), "uses", None, (c[0],))
 

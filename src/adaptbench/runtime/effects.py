@@ -175,7 +175,9 @@ def set_state(world: World, params: dict, b: dict, ctx) -> None:
 def took_part(world: World, node, vessels) -> None:
     """The vessels a node was heated or made in, and the utensils standing in them then, took part."""
     vessels = list(vessels)
-    tools = [c for v in vessels[:1] if v in world.specs and world.specs[v].kind == "movable"
+    # the innermost vessel that is not food itself: the pan a whole tomato was heated in, not the tomato
+    inner = [v for v in vessels if v not in world.nodes][:1]
+    tools = [c for v in inner if v in world.specs and world.specs[v].kind == "movable"
              for c in world.children.get(v, ()) if c not in world.nodes and world.specs[c].kind == "movable"]
     node.vessels.update(vessels)
     node.vessels.update(tools)

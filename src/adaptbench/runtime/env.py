@@ -77,6 +77,7 @@ class Env:
             ok = True
         except ActionFailed as exc:
             action, args, obs, ok = None, {}, str(exc), False
+        w.settle()
         w.trace.append(Event(w.step, text, action, ok, obs, args, ctx["reply"]))
         return StepResult(obs, ok, self.done, ctx["reply"])
 

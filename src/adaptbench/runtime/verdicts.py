@@ -66,8 +66,12 @@ def _per_dish_cond(domain: CompiledDomain, rule: A.Rule) -> bool:
 
 
 def _condition_per_dish(rule: A.Rule) -> bool:
+    """`it` is the dish; so is `sides` (its sides) unless the scope is `all`, where `sides` means every side of
+    the meal (`for all if meal has milk or sides has milk`: one condition about the whole table)."""
     cond = rule.scope.cond if rule.scope is not None else None
-    return cond is not None and any(isinstance(n, A.Pred) and n.subject in ("it", "sides") for n in A.walk(cond))
+    meal = "all" in rule.scope.targets if rule.scope is not None else True
+    return cond is not None and any(isinstance(n, A.Pred) and (n.subject == "it" or (n.subject == "sides" and not meal))
+                                    for n in A.walk(cond))
 
 
 def evaluate(domain: CompiledDomain, world: World, task: Task, persona: Persona | None) -> Evaluation:

@@ -92,6 +92,7 @@ class Ctx:
         self._placed: dict = {}  # dish key -> the pieces placed on it, as a dish of their own
         self._kinds: dict = {}  # (dish key, component) -> sweet | savory | beverage
         self._sides: dict = {}  # dish keys (or None) -> their sides
+        self._vessels: dict = {}  # class expression -> the scene's entities it matches (for `free`)
 
     def completes(self, dish: Dish, comps) -> bool:
         """Whether a dish completes any of the components (each checked once, on demand)."""
@@ -426,6 +427,41 @@ def _p_available(node: A.Pred, domain):
     return check
 
 
+def _p_free(node: A.Pred, domain):
+    """`free X for S`: for every dish of S, another X stood free when the dish's vessel was chosen (the step
+    it last began to hold food; a dish without a vessel: the step it was served): present in the scene, not
+    the vessel of anything on the table at the end, and not holding food then unless that food stayed in it
+    to the end (a bowl that held the beaten eggs was in use; one left with a pinch of salt in it was idle)."""
+    f, text = entity_matcher(node.args[0]), render(node.args[0])
+
+    def check(ctx, it):
+        dishes = ctx.subject(node.subject, it)
+        if not dishes:
+            return Outcome(False, f"no {node.subject} dish was served")
+        cands = ctx._vessels.get(node.args[0])
+        if cands is None:
+            w = ctx.world
+            taken = {d.container for d in ctx.table if d.container is not None}
+            cands = ctx._vessels[node.args[0]] = [e for e in sorted(w.scene.present) if e not in taken and f(w, e)]
+        outcomes = []
+        for d in dishes:
+            hits, when = _free(ctx, d, cands)
+            why = (f"{', '.join(hits)} ({text}) free at step {when}, when {d.key}'s vessel was chosen" if hits
+                   else f"no {text} free at step {when}, when {d.key}'s vessel was chosen")
+            outcomes.append(Outcome(bool(hits), why, (when,)))
+        return _all(outcomes)
+    return check
+
+
+def _free(ctx: Ctx, dish: Dish, cands: list) -> tuple:
+    """(the free ones among `cands` (matching vessels not serving at the table) for `dish`, the step its
+    vessel was chosen)."""
+    w = ctx.world
+    when = w.filled_at(dish.container) if dish.container is not None else dish.served_step
+    hits = [e for e in cands if not (w.held_food(e, when) and not w.holds_food(e))]
+    return hits, when
+
+
 @lru_cache(maxsize=4096)
 def _entity_node(domain: CompiledDomain, eid: str) -> Node:
     e = domain.entity[eid]
@@ -477,7 +513,7 @@ _PREDS = evaluators("verdict", {  # registered by the names declared in compiler
           "served_at": _p_served_at, "served_in": _p_served_in, "made_in": _p_made_in,
           "made_with": _p_made_with, "topped_with": _p_topped_with, "made_by": _p_made_by,
           "cooked_in": _p_cooked_in, "adds_before": _p_adds_before, "served_before": _p_served_before,
-          "available": _p_available, "uses": _p_uses, "task_has": _p_task_has, "made": _p_made})
+          "available": _p_available, "free": _p_free, "uses": _p_uses, "task_has": _p_task_has, "made": _p_made})
 
 
 from .verdicts import evaluate, verdict  # noqa: E402  (preference-level verdicts; re-exported here)

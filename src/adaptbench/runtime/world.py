@@ -114,6 +114,8 @@ class World:
         self.done = False
         self._nid = 0
         self.nodes: dict[str, Node] = {}  # edible objects' nodes
+        self.fill_log: dict[str, list] = {}  # container -> [(step, holds food after it)], from its first change
+        self._touched: set = set()  # containers whose food may have changed in this step
         for e, category, tags in t.edible:
             self.nodes[e] = self.new_node(e, category, tags, entity=e)
 
@@ -182,12 +184,54 @@ class World:
             yield c
             yield from self.descendants(c)
 
+    def holds_food(self, eid: str) -> bool:
+        """Whether `eid` holds food now: a content, or an edible object standing in or on it."""
+        return bool(self.contents.get(eid)) or any(c in self.nodes for c in self.children.get(eid, ()))
+
+    def held_food(self, eid: str, step: int) -> bool:
+        """Whether `eid` held food after `step` (docs/rules.md, *Free: availability that counts use*)."""
+        log = self.fill_log.get(eid)
+        if not log:
+            return self.holds_food(eid)  # never changed: as it is now
+        held = log[0][1]
+        for s, full in log:
+            if s > step:
+                break
+            held = full
+        return held
+
+    def filled_at(self, eid: str) -> int:
+        """The step `eid` last went from holding no food to holding some (0: it held food from the start)."""
+        log = self.fill_log.get(eid, ())
+        for i in range(len(log) - 1, 0, -1):
+            if log[i][1] and not log[i - 1][1]:
+                return log[i][0]
+        return 0
+
+    def settle(self) -> None:
+        """After a step: log the containers whose holding food changed in it (`held_food`, `filled_at`)."""
+        for eid in self._touched:
+            log = self.fill_log[eid]
+            now = self.holds_food(eid)
+            if log[-1][1] != now:
+                log.append((self.step, now))
+        self._touched.clear()
+
+    def _touch(self, eid: str | None) -> None:
+        if eid is not None and eid not in self._touched:
+            self._touched.add(eid)
+            if eid not in self.fill_log:
+                self.fill_log[eid] = [(0, self.holds_food(eid))]
+
     # ---- changes
     def relocate(self, eid: str, target: str) -> None:
         """Move entity `eid` into/onto `target` (where it already is: nothing changes, it does not re-arrive)."""
         old = self.parent.get(eid)
         if old == target:
             return
+        if eid in self.nodes:
+            self._touch(old)
+            self._touch(target)
         if old is not None:
             self.children[old].remove(eid)
         self.parent[eid] = target
@@ -200,6 +244,8 @@ class World:
         """Remove an entity that was consumed or transformed."""
         for c in list(self.children.get(eid, ())):
             self.relocate(c, self.parent[eid])
+        if eid in self.nodes:
+            self._touch(self.parent.get(eid))
         old = self.parent.pop(eid, None)
         if old is not None:
             self.children[old].remove(eid)
@@ -210,6 +256,7 @@ class World:
 
     def add_entity(self, spec: EntitySpec, node: Node, holder: str) -> None:
         """Add a new (result) object entity at `holder`."""
+        self._touch(holder)
         self.specs[spec.id] = spec
         self.children[spec.id] = []
         self.nodes[spec.id] = node
@@ -223,6 +270,7 @@ class World:
         """Remove and return the portions named `name` from `holder` (a new portion from a source)."""
         nodes = [n for n in self.contents.get(holder, ()) if n.name == name]
         if nodes:
+            self._touch(holder)
             self.contents[holder] = [n for n in self.contents[holder] if n.name != name]
             return nodes
         if name in self.sources.get(holder, ()):
@@ -231,6 +279,7 @@ class World:
 
     def put_contents(self, holder: str, nodes: list) -> None:
         """Put content nodes into `holder`."""
+        self._touch(holder)
         for n in nodes:
             n.arrived = self.step
         self.contents.setdefault(holder, []).extend(nodes)
