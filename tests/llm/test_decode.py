@@ -328,3 +328,32 @@ def test_a_single_row_decodes_in_its_sessions_buffer_with_no_attention_mask(doma
         handle.remove()
     assert masks and all(m is None for m in masks)
     assert all(x is y for x, y in zip(kept[0], kept[2], strict=True))  # the same layer objects, reused
+
+
+def test_passes_under_a_narrow_grammar_compute_only_the_allowed_logits_and_pick_the_same(domain, tiny, monkeypatch):
+    """On the CPU a pass whose rows' grammars allow few tokens computes only those tokens' logits (the
+    output layer is a fifth of SmolLM2's weights): the same completions as with the whole layer, batched
+    and one row, constrained and (all logits) unconstrained."""
+    from adaptbench.llm import decode
+    from adaptbench.llm.backend import Request
+
+    b = _sharp(tiny)
+    g = _grammar(domain)
+    prompts = _prompts(domain, b, 3)
+    reqs = [Request(p, g if i != 2 else None, (), 14) for i, p in enumerate(prompts)]
+    narrow, real = [], decode._logits
+
+    def spy(model, head, **kw):
+        narrow.append(head is not None)
+        return real(model, head, **kw)
+
+    monkeypatch.setattr(decode, "_logits", spy)
+    assert decode.narrow_head(b.model)
+    runs = [[c.text for c in b.generate(reqs)], [c.text for c in b.generate(reqs[:2])],
+            [c.text for c in b.generate(reqs[:1])]]
+    assert any(narrow) and not all(narrow)
+    monkeypatch.setattr(decode, "narrow_head", lambda model: False)
+    narrow.clear()
+    assert runs == [[c.text for c in b.generate(reqs)], [c.text for c in b.generate(reqs[:2])],
+                    [c.text for c in b.generate(reqs[:1])]]
+    assert not any(narrow)

@@ -35,6 +35,8 @@ import torch
 from transformers import DynamicCache
 from transformers.cache_utils import DynamicLayer
 
+from .constrained import unpack_bits
+
 _POOL: list = []
 os.register_at_fork(after_in_child=_POOL.clear)  # a forked worker has no threads: it starts its own pool
 
@@ -426,6 +428,7 @@ def decode(model, rows: list, sessions: Sessions, picker, stopped, pad_id: int =
     read = [len(r.prompt) for r in rows]  # each row's tokens in the cache
     logits = torch.stack(first)
     cache, mask = batch if batch is not None else _batch_cache(model, list(layers), read, room)
+    narrow = narrow_head(model)
     slots = list(range(len(rows)))  # the request row in each cache row (None: a stopped row riding along)
     active = list(slots)
     while active:
@@ -443,7 +446,7 @@ def decode(model, rows: list, sessions: Sessions, picker, stopped, pad_id: int =
             active = [i for i in slots if i is not None]
         new = [rows[i].tokens[read[i] - len(rows[i].prompt):] if i is not None else [pad_id] for i in slots]
         at = [read[i] if i is not None else 0 for i in slots]
-        out, mask = _forward(model, cache, mask, new, at, pad_id)
+        out, mask = _forward(model, cache, mask, new, at, pad_id, picker.allowed(active) if narrow else None)
         logits = out if len(active) == len(slots) else out[[k for k, i in enumerate(slots) if i is not None]]
         for i, t in zip(slots, new, strict=True):
             if i is not None:
@@ -501,11 +504,37 @@ def _store(rows: list, slots: list, running: set, read: list, cache, mask, sessi
                      [layer.row(k, where) for layer in cache.layers])
 
 
-def _forward(model, cache, mask, new: list, read: list, pad_id: int) -> tuple:
+HEAD_TYPES = ("llama", "mistral", "qwen2", "qwen3")  # causal LMs whose logits are the plain output layer's
+NARROW = 4  # a pass computes only the allowed tokens' logits when they are at most 1/NARROW of the vocabulary
+
+
+def narrow_head(model) -> bool:
+    """Whether a pass may compute only the grammar's allowed tokens' logits: on the CPU (where the output
+    layer is a fifth of a small model's weights read per token: SmolLM2's 49,152 x 576), for model types
+    whose logits are the output layer's alone (no scaling or soft-capping), with a bias-free layer."""
+    head = model.get_output_embeddings()
+    return (model.device.type == "cpu" and getattr(model.config, "model_type", None) in HEAD_TYPES
+            and hasattr(model, "model") and isinstance(head, torch.nn.Linear) and head.bias is None)
+
+
+def _logits(model, head, **kwargs) -> torch.Tensor:
+    """The last position's logits [B, V] (float32); with `head` (sorted token ids) only those tokens'
+    are computed, the others -inf (the grammar forbids them: the same logits where allowed)."""
+    cache = kwargs.pop("cache")
+    if head is None:
+        return model(**kwargs, **cache_arg(model, cache), logits_to_keep=1).logits[:, -1].float()
+    h = model.model(**kwargs, **cache_arg(model.model, cache)).last_hidden_state[:, -1]
+    w = model.get_output_embeddings().weight
+    out = torch.full((h.shape[0], w.shape[0]), float("-inf"), dtype=torch.float32, device=h.device)
+    out[:, head] = torch.nn.functional.linear(h, w[head]).float()
+    return out
+
+
+def _forward(model, cache, mask, new: list, read: list, pad_id: int, head=None) -> tuple:
     """One decoding pass: each row reads its new tokens (most often one; more when its grammar forced
     some) at its own positions, right-aligned and padded (masked) to the longest. `mask` None: no
-    padding so far (it is made when rows read different numbers of tokens). Returns (logits [B, V],
-    mask)."""
+    padding so far (it is made when rows read different numbers of tokens). `head`: the token ids whose
+    logits are needed (None: all; `_logits`). Returns (logits [B, V], mask)."""
     width, most = cache.get_seq_length(), max(len(t) for t in new)
     dev = model.device
     if mask is None and any(len(t) != most for t in new):
@@ -521,9 +550,9 @@ def _forward(model, cache, mask, new: list, read: list, pad_id: int) -> tuple:
         if mask is not None:
             mask = torch.cat([mask, tail.to(mask.device)], dim=1)
     with grouped_heads(model) if most > 1 else nullcontext():
-        out = model(input_ids=ids, attention_mask=mask, position_ids=pos, use_cache=True, **cache_arg(model, cache),
-                    cache_position=torch.arange(width, width + most, device=dev), logits_to_keep=1)
-    return out.logits[:, -1].float(), mask
+        logits = _logits(model, head, input_ids=ids, attention_mask=mask, position_ids=pos, use_cache=True,
+                         cache=cache, cache_position=torch.arange(width, width + most, device=dev))
+    return logits, mask
 
 
 def _right_aligned(chunks: list, starts: list, pad_id: int) -> tuple:
@@ -549,6 +578,14 @@ def loop_supported(model) -> bool:
     except Exception:  # noqa: BLE001 - any model whose cache we cannot build takes the generic path
         return False
     return bool(cache.layers) and all(type(layer) is DynamicLayer for layer in cache.layers)
+
+
+def _or_rows(words: torch.Tensor) -> torch.Tensor:
+    """Bitwise or of the rows of an int32 tensor [n, W]."""
+    out = words[0].clone()
+    for row in words[1:]:
+        out |= row
+    return out
 
 
 class Picker:
@@ -577,6 +614,16 @@ class Picker:
         if self.sampler is not None:
             return self.sampler.pick(logits, active)
         return logits.argmax(dim=-1)
+
+    def allowed(self, active: list) -> torch.Tensor | None:
+        """The token ids any of the active rows' next masks allows (sorted), when every active row is
+        constrained and they are at most 1/NARROW of the vocabulary; else None (all logits needed)."""
+        if self.proc is None or not active or len(self.proc.live(active)) != len(active):
+            return None
+        words = self.proc.bitmask[torch.tensor(active, dtype=torch.long)]
+        union = _or_rows(words)
+        ids = unpack_bits(union.unsqueeze(0), self.proc.vocab)[0].nonzero().view(-1)
+        return ids if 0 < len(ids) <= self.proc.vocab // NARROW else None
 
     def start(self, rows: list) -> None:
         """Start computing the rows' first masks (on the worker thread: the prompts are read meanwhile)."""
