@@ -506,15 +506,18 @@ def _store(rows: list, slots: list, running: set, read: list, cache, mask, sessi
 
 HEAD_TYPES = ("llama", "mistral", "qwen2", "qwen3")  # causal LMs whose logits are the plain output layer's
 NARROW = 4  # a pass computes only the allowed tokens' logits when they are at most 1/NARROW of the vocabulary
+HEAD_MIN = 2**23  # ... and the output layer has at least this many weights (SmolLM2's: 28M; the tiny model's: 0.2M)
 
 
 def narrow_head(model) -> bool:
     """Whether a pass may compute only the grammar's allowed tokens' logits: on the CPU (where the output
     layer is a fifth of a small model's weights read per token: SmolLM2's 49,152 x 576), for model types
-    whose logits are the output layer's alone (no scaling or soft-capping), with a bias-free layer."""
+    whose logits are the output layer's alone (no scaling or soft-capping), with a bias-free layer large
+    enough to matter (`HEAD_MIN` weights)."""
     head = model.get_output_embeddings()
     return (model.device.type == "cpu" and getattr(model.config, "model_type", None) in HEAD_TYPES
-            and hasattr(model, "model") and isinstance(head, torch.nn.Linear) and head.bias is None)
+            and hasattr(model, "model") and isinstance(head, torch.nn.Linear) and head.bias is None
+            and head.weight.numel() >= HEAD_MIN)
 
 
 def _logits(model, head, **kwargs) -> torch.Tensor:
