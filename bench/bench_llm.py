@@ -1,11 +1,12 @@
-"""Language-model side on the tiny model (CPU): constrained versus unconstrained decoding speed, batched
-versus one-at-a-time rollouts (16 planner episodes of 20 steps; one at a time both through our loop
-and the plain way, `model.generate` reading every step's prompt whole), the share of a step spent
-outside the model, and LLM-user answers per second batched (one generate for every episode that asks
-in a round) versus one at a time.
+"""Language-model side (the tiny model by default; any model directory, or SmolLM2-135M's shape with random
+weights): planner steps per second at batch 1, 16 and 64 (b episodes together) with the share of wall
+time spent outside the model, against the plain way in the same run (`model.generate`, one episode,
+every step's prompt read whole); constrained versus unconstrained decoding speed; and LLM-user answers
+per second batched (one generate for every episode that asks in a round) versus one at a time.
 
     python bench/bench_llm.py [--model DIR] [--quick] [--device cuda] [--dtype bfloat16]
                                                  # builds the tiny model when --model is absent
+    python bench/bench_llm.py --shape smollm2 [--model DIR] --quick   # SmolLM2-135M's shape, random weights
     python bench/bench_llm.py --model models/smollm2 --settings   # a real model's settings (llm_settings.py)
 
 Needs the `models` extra. Figures go to docs/llm.md.
@@ -85,22 +86,6 @@ def _rollout(domain, backend, n: int, steps: int, batch: int) -> tuple:
     return len(recs) / wall * 60, recs, wall
 
 
-def episodes_per_minute(domain, backend, plain, n: int, steps: int, rounds: int = 2) -> dict:
-    """Episodes per minute (best of `rounds` interleaved rounds): n batched, one at a time, and one at a
-    time the plain way (`plain`: `model.generate`, no cache kept between steps); and the share of the
-    batched run's time spent outside the model."""
-    best = {"batched": 0.0, "single": 0.0, "plain": 0.0}
-    for _ in range(rounds):
-        for name, b, batch in (("batched", backend, n), ("single", backend, 1), ("plain", plain, 1)):
-            rate, recs, wall = _rollout(domain, b, n, steps, batch)
-            if name == "batched" and rate > best["batched"]:
-                model = sum(s["stats"]["seconds"] / s["stats"]["batch"] for r in recs for s in r["steps"])
-                best["prep"] = sum(s["stats"]["prepare_seconds"] for r in recs for s in r["steps"]) / model
-                best["other"] = (wall - model) / model
-            best[name] = max(best[name], rate)
-    return best
-
-
 class _InStep:
     """An LLM user that answers inside its step only (no `prepare_answers`): the unbatched path."""
 
@@ -153,37 +138,86 @@ def user_answers_per_second(domain, backend, n: int, steps: int) -> tuple:
     return out, answers, all(r == replies[0] for r in replies)
 
 
-def run(model: str | None, quick: bool, device: str = "cpu", dtype: str = "auto") -> list:
-    """Benchmark rows."""
+def _timed_rollout(domain, backend, n: int, steps: int, batch: int) -> dict:
+    """n planner episodes of `steps` steps, `batch` at a time: steps, wall and CPU seconds, and the model's
+    seconds (each generate call's time, counted once)."""
+    backend.batch_size = max(1, batch)
+    if backend.sessions.limit:
+        backend.sessions.limit = max(backend.sessions.limit, 2 * batch)  # every running episode keeps its cache
+    cpu = time.process_time()
+    _, recs, wall = _rollout(domain, backend, n, steps, batch)
+    cpu = time.process_time() - cpu
+    done = sum(len(r["steps"]) for r in recs)
+    model = sum(s["stats"]["seconds"] / s["stats"]["batch"] for r in recs for s in r["steps"])
+    return {"steps": done, "wall": wall, "cpu": cpu, "model": model}
+
+
+def steps_per_second(domain, backend, plain, batches, steps: int) -> dict:
+    """Planner steps per second at each batch size b (b episodes of `steps` steps together, offline
+    user), with the share of the wall time spent outside the model and CPU seconds per step; and the
+    plain way, one episode with `model.generate` reading every step's prompt whole (no cache)."""
+    out = {b: _timed_rollout(domain, backend, b, steps, b) for b in batches}
+    out["plain"] = _timed_rollout(domain, plain, 1, steps, 1)
+    return out
+
+
+def _step_rows(table: dict, batches, steps: int) -> list:
+    plain = table["plain"]["steps"] / table["plain"]["wall"]
+    rows = []
+    for b in batches:
+        t = table[b]
+        rate = t["steps"] / t["wall"]
+        rows += [(f"llm: steps/s, batch {b}", rate, "steps/s", ">= 1000" if b == 64 else "",
+                  f"({b} ep x {steps} steps; {t['cpu'] / t['steps']:.3g} CPU s/step)"),
+                 (f"llm: non-model share, batch {b}", (t["wall"] - t["model"]) / t["wall"], "share", "< 0.05",
+                  "(simulator, user, prompts, grammar: wall time outside generate)"),
+                 (f"llm: batch {b} / model.generate one at a time", rate / plain, "ratio", "", "")]
+    rows.append(("llm: steps/s, model.generate one at a time", plain, "steps/s", "", "(no cache between steps)"))
+    if 1 in table and 16 in table:
+        ratio = (table[16]["steps"] / table[16]["wall"]) / (table[1]["steps"] / table[1]["wall"])
+        rows.append(("llm: batched 16 / one at a time", ratio, "ratio", ">= 4", "(GPU target)"))
+    return rows
+
+
+def run(model: str | None, quick: bool, device: str = "cpu", dtype: str = "auto", threads: int | None = None,
+        batches=(1, 16, 64)) -> list:
+    """Benchmark rows. A real-sized model (100 MB of weights or more, `llm.cpu`) gets a shorter quick run:
+    steps/s at each batch size and decoding at batch 1 (no LLM-user rows)."""
     from adaptbench.compiler import load_domain
+    from adaptbench.llm.cpu import LARGE, cpu_defaults, weight_bytes
     from adaptbench.llm.hf import TransformersBackend
     from adaptbench.llm.tiny import init_tiny
 
     domain = load_domain(SPEC)
     if model is None:
         model = str(init_tiny(domain, Path(tempfile.mkdtemp()) / "tiny"))
-    backend = TransformersBackend(model, device=device, dtype=dtype, batch_size=16)
-    plain = TransformersBackend(model, device=device, dtype=dtype, batch_size=1, sessions=0)
+    large = weight_bytes(model) >= LARGE
+    if device == "cpu" and dtype == "auto":
+        dtype = cpu_defaults(model).dtype
+        threads = threads or cpu_defaults(model).threads
+    backend = TransformersBackend(model, device=device, dtype=dtype, batch_size=16, threads=threads or 1)
+    plain = TransformersBackend(model, device=device, dtype=dtype, batch_size=1, sessions=0, threads=threads or 1)
     plain.loop = False  # model.generate, every step's prompt read whole: what a user would write
+    settings = [(f"llm: settings: {device} {dtype}, {torch_threads()} torch threads", weight_bytes(model) / 2**20, "MB",
+                 "", f"(model {model})")]
     n, steps = (8, 5) if quick else (16, 20)
-    con, unc = decode_speed(domain, backend, n, 1 if quick else 3)
+    if large:
+        steps = 2 if quick else 6
+    table = steps_per_second(domain, backend, plain, batches, 3 if quick and not large else steps)
+    rows = settings + _step_rows(table, batches, 3 if quick and not large else steps)
     con1, unc1 = decode_speed(domain, backend, 1, 1 if quick else 3)
-    ep = episodes_per_minute(domain, backend, plain, n, steps, 1 if quick else 2)
+    rows += [("llm: constrained decoding tokens/s (batch 1)", con1, "tok/s", ">= 25" if large else "",
+              "(prompt reading timed apart)"),
+             ("llm: unconstrained decoding tokens/s (batch 1)", unc1, "tok/s", "", ""),
+             ("llm: constrained / unconstrained (batch 1)", con1 / unc1, "ratio", ">= 0.9", "(forced tokens fast-forwarded)")]
+    if large and quick:
+        return rows
+    con, unc = decode_speed(domain, backend, n, 1 if quick else 3)
     ua, answers, same = user_answers_per_second(domain, backend, n, 3 if quick else 6)
-    return [
+    return rows + [
         (f"llm: constrained decoding tokens/s (batch {n})", con, "tok/s", "", "(prompt reading timed apart)"),
         (f"llm: unconstrained decoding tokens/s (batch {n})", unc, "tok/s", "", ""),
         ("llm: constrained / unconstrained", con / unc, "ratio", ">= 0.9", "(forced tokens fast-forwarded)"),
-        ("llm: constrained decoding tokens/s (batch 1)", con1, "tok/s", "", ""),
-        ("llm: unconstrained decoding tokens/s (batch 1)", unc1, "tok/s", "", ""),
-        ("llm: constrained / unconstrained (batch 1)", con1 / unc1, "ratio", ">= 0.9", "(forced tokens fast-forwarded)"),
-        (f"llm: episodes/min, {n} batched ({steps} steps)", ep["batched"], "ep/min", "", ""),
-        ("llm: episodes/min, one at a time", ep["single"], "ep/min", "", ""),
-        ("llm: episodes/min, model.generate one at a time", ep["plain"], "ep/min", "", "(no cache between steps)"),
-        ("llm: batched / one at a time", ep["batched"] / ep["single"], "ratio", ">= 4", "(GPU target)"),
-        ("llm: batched / model.generate one at a time", ep["batched"] / ep["plain"], "ratio", "", ""),
-        ("llm: prompt+grammar time / model time", ep["prep"], "share", "< 0.05", ""),
-        ("llm: all non-model time / model time", ep["other"], "share", "< 0.05", "(simulator, user, prompts, grammar)"),
         (f"llm: user answers/s, {n} batched", ua["batched"], "answers/s", "", f"({answers} answers, scripted always-ask)"),
         (f"llm: user answers/s, {n} episodes, answered in the step", ua["in_step"], "answers/s", "", ""),
         ("llm: user answers/s, one episode at a time", ua["single"], "answers/s", "",
@@ -193,13 +227,25 @@ def run(model: str | None, quick: bool, device: str = "cpu", dtype: str = "auto"
     ]
 
 
+def torch_threads() -> int:
+    """Torch's intra-op threads now."""
+    import torch
+
+    return torch.get_num_threads()
+
+
 def main() -> int:
     """Run and print."""
     p = argparse.ArgumentParser(description=__doc__)
     p.add_argument("--model", help="model directory (default: build the tiny model in a temp dir)")
     p.add_argument("--quick", action="store_true", help="8 episodes of 5 steps, one round (a smoke run)")
     p.add_argument("--device", default="cpu", help="cpu (default), cuda, cuda:1, ... (the >= 4x target is a GPU one)")
-    p.add_argument("--dtype", default="auto", help="auto (default), float32, bfloat16, float16")
+    p.add_argument("--dtype", default="auto", help="auto (default: on a CPU, llm/cpu.py's choice by model size), "
+                   "float32, bfloat16, float16")
+    p.add_argument("--threads", type=int, help="torch threads on a CPU (default: llm/cpu.py's choice)")
+    p.add_argument("--batches", default="1,16,64", help="batch sizes of the steps/s rows (default 1,16,64)")
+    p.add_argument("--shape", choices=["smollm2"], help="build a random-weight model of this shape (SmolLM2-135M: "
+                   "bench/model_shapes.py) into --model DIR, or a temp dir, and measure it")
     p.add_argument("--settings", action="store_true", help="with --model: steps/s under each backend setting "
                    "(threads, batch, session cache, budget, dtype; bench/llm_settings.py)")
     args = p.parse_args()
@@ -211,7 +257,13 @@ def main() -> int:
             p.error("--settings needs --model DIR")
         report(settings(load_domain(SPEC), args.model, args.quick))
         return 0
-    report(run(args.model, args.quick, args.device, args.dtype))
+    if args.shape:
+        from adaptbench.compiler import load_domain
+        from bench.model_shapes import smollm2_shape
+
+        args.model = str(smollm2_shape(load_domain(SPEC), args.model or Path(tempfile.mkdtemp()) / "smollm2"))
+    batches = [int(b) for b in args.batches.split(",")]
+    report(run(args.model, args.quick, args.device, args.dtype, args.threads, batches))
     return 0
 
 

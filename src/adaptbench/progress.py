@@ -28,14 +28,14 @@ class _Lines:
         self.stream.flush()
 
 
-def progress_bar(total: int, label: str, enabled: bool = True, stream=None):
-    """A tqdm bar over `total` items on stderr (`bar.update()`, `bar.set_postfix_str(note)`, `bar.close()`;
-    also a context manager); disabled: it draws nothing."""
+def progress_bar(total: int, label: str, enabled: bool = True, stream=None, unit: str = "ep"):
+    """A tqdm bar over `total` items (`unit`: episodes by default) on stderr (`bar.update()`,
+    `bar.set_postfix_str(note)`, `bar.close()`; also a context manager); disabled: it draws nothing."""
     from tqdm import tqdm
 
     stream = stream or sys.stderr
     tty = hasattr(stream, "isatty") and stream.isatty()
     if tty:
-        return tqdm(total=total, desc=label, file=stream, unit="ep", dynamic_ncols=True, disable=not enabled)
-    return tqdm(total=total, desc=label, file=_Lines(stream), unit="ep", ncols=100, disable=not enabled,
+        return tqdm(total=total, desc=label, file=stream, unit=unit, dynamic_ncols=True, disable=not enabled)
+    return tqdm(total=total, desc=label, file=_Lines(stream), unit=unit, ncols=100, disable=not enabled,
                 mininterval=NON_TTY_SECONDS, miniters=max(1, total // 10), ascii=True)

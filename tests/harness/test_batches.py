@@ -61,3 +61,27 @@ def test_a_policy_that_raises_at_start_or_while_deciding_ends_only_that_episode(
 def test_the_spec_of_a_rollout_can_be_named_instead_of_loaded(tmp_path):
     res = rollout([Job("never-ask", "ana", "eggs", 0)], tmp_path / "r.jsonl", spec=str(SMALL), progress=False)
     assert res.ran == 1
+
+
+def test_the_progress_bar_moves_by_steps_and_ends_at_the_whole_budget(tmp_path, small_domain, capsys):
+    """A model's episode can take minutes: the bar counts steps (each round's, and an episode's unused
+    budget when it ends), so it moves within an episode and ends at every job's budget; with workers
+    the ticks come through the pool and the records are the same."""
+    from adaptbench.agents.scripted import make_policy
+    from adaptbench.harness.batches import run_batched
+    from adaptbench.harness.episode import Ticks
+
+    persona = small_domain.personas[0].id
+    jobs = [Job("never-ask", persona, "eggs", s) for s in (0, 1, 2)]
+    items = list(run_batched(jobs, small_domain, make_policy("never-ask", small_domain), OfflineUser, batch=2,
+                             steps=7, ticks=True))
+    recs = [i for i in items if not isinstance(i, Ticks)]
+    assert len(recs) == 3 and sum(i.steps for i in items if isinstance(i, Ticks)) == 3 * 7
+    assert isinstance(items[0], Ticks) and items[0].steps == 2  # the first round: two episodes, one step each
+    for workers in (1, 2):
+        out = tmp_path / f"w{workers}.jsonl"
+        res = rollout(jobs, out, workers=workers, progress=True, domain=small_domain, batch=2, steps=7)
+        assert res.ran == 3
+        lines = [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith("rollout ->")]
+        assert lines and "21/21" in lines[-1] and "step" in lines[-1], lines
+    assert _records(tmp_path / "w1.jsonl") == _records(tmp_path / "w2.jsonl")

@@ -27,6 +27,8 @@ def test_a_real_sized_model_gets_two_threads_and_bfloat16_where_the_cpu_has_it(t
     s = cpu_defaults(path)
     assert s.threads == min(2, os.cpu_count() or 1) and s.batch == 16
     assert s.dtype == ("bfloat16" if native_bf16() else "auto")
+    one = cpu_defaults(path, batch=1)  # one episode at a time: decoding one row is slower in bfloat16
+    assert (one.dtype, one.batch) == ("auto", 1)
 
 
 def test_the_command_line_wins(tmp_path):

@@ -104,8 +104,10 @@ def test_a_session_reads_only_new_tokens_and_generates_the_same(domain, tiny):
 
 def test_a_new_episode_starts_from_the_prefix_another_shares_and_generates_the_same(domain, tiny):
     """Episodes open with the same system message: a new session's first prompt reads only what follows
-    the longest prefix it shares with a kept session (or with a prompt read earlier in the same call)."""
+    the longest prefix it shares with a kept session; new sessions in one call read the prefix they
+    share once and each start from it."""
     from adaptbench.llm.backend import Request
+    from adaptbench.llm.decode import common_prefix
 
     cached, fresh = _sharp(tiny), _sharp(tiny, sessions=0)
     g = _grammar(domain)
@@ -117,7 +119,9 @@ def test_a_new_episode_starts_from_the_prefix_another_shares_and_generates_the_s
     assert 64 <= second.stats["cached_tokens"] <= shared
     assert second.text == fresh.generate([Request(c, g, (), 16)])[0].text
     both = fresh.generate([Request(b, g, (), 16, session="x"), Request(c, g, (), 16, session="y")])
-    assert both[0].stats["cached_tokens"] == 0 and both[1].stats["cached_tokens"] >= 64  # one call, one read
+    common = common_prefix(cached.encode(b), cached.encode(c))  # read once, both rows start from it
+    assert common >= 64 and [o.stats["cached_tokens"] for o in both] == [min(common, o.prompt_tokens - 1)
+                                                                         for o in both]
     assert [o.text for o in both] == [fresh.generate([Request(p, g, (), 16)])[0].text for p in (b, c)]
 
 
@@ -180,7 +184,9 @@ def test_rows_of_several_sessions_read_their_new_tokens_together_and_generate_th
             texts = [t + c.text + turn * (1 + i) for i, (t, c) in enumerate(zip(texts, a, strict=True))]
     finally:
         decode.prefill_many = many
-    assert calls == [3, 3]  # steps 2 and 3: the three rows' new tokens in one forward pass
+    # step 1: the shared system message read once, then the two rows whose rest is short in one pass;
+    # steps 2 and 3: the three rows' new tokens in one forward pass
+    assert calls == [2, 3, 3]
 
 
 def test_piecewise_encoding_equals_whole_encoding(domain, backend):
@@ -268,3 +274,93 @@ def test_a_rollout_raises_no_deprecation_warning_from_transformers(domain, tiny,
     recs = [json.loads(line) for line in out.read_text().splitlines()]
     assert res.errors == 0, [r.get("error") for r in recs]
     assert len(recs) == 2 and all(len(r["steps"]) == 3 for r in recs)
+
+
+def _actions(domain, backend, batch: int, steps: int = 4) -> dict:
+    from adaptbench.harness.batches import run_batched
+    from adaptbench.harness.rollout import Job
+    from adaptbench.llm.policies import LLMPolicy
+    from adaptbench.runtime.users import OfflineUser
+
+    jobs = [Job("planner", p, t, 0) for p in ("juan", "miranda") for t in ("eggs", "cereal")] + \
+        [Job("planner", "juan", "eggs", 1)]
+    policy = LLMPolicy(backend, domain, "planner", max_tokens=14)
+    recs = run_batched(jobs, domain, policy, OfflineUser, batch=batch, steps=steps)
+    return {(r["persona"], r["task"], r["seed"]): [s["action"] for s in r["steps"]] for r in recs}
+
+
+@pytest.mark.parametrize("batch,ride", [(1, False), (5, True), (5, False), (2, True)])
+def test_the_cache_path_acts_as_model_generate_does_greedy_under_the_grammar(domain, tiny, batch, ride, monkeypatch):
+    """Speed must not change behaviour: constrained planner rollouts through the loop's cache path (a
+    single row in its session's own buffer; several in one batch buffer with stopped rows riding and
+    compaction; new episodes from a shared prefix) take the same actions as `model.generate` reading
+    every step's prompt whole, one episode at a time. `ride`: stopped rows stay in the batch until half
+    have stopped (a large model's way; the tiny model's small caches are compacted at once)."""
+    from adaptbench.llm import decode
+
+    if ride:
+        monkeypatch.setattr(decode, "COMPACT_BYTES", 0)
+    ours, plain = _sharp(tiny), _sharp(tiny, sessions=0, batch_size=1)
+    plain.loop = False
+    got, want = _actions(domain, ours, batch), _actions(domain, plain, 1)
+    assert got == want
+    assert len({tuple(a) for a in want.values()}) > 1  # the episodes act differently
+
+
+def test_a_single_row_decodes_in_its_sessions_buffer_with_no_attention_mask(domain, tiny):
+    """One row: every decoding pass goes without an explicit attention mask (no padding: the kernels
+    that take none serve) and the session keeps the same cache layers step after step (written in
+    place, not copied per step or grown by concatenation per token)."""
+    from adaptbench.llm.backend import Request
+
+    b = _sharp(tiny)
+    masks = []
+
+    def hook(module, args, kwargs):
+        if kwargs["input_ids"].shape[1] == 1:
+            masks.append(kwargs.get("attention_mask"))
+
+    handle = b.model.register_forward_pre_hook(hook, with_kwargs=True)
+    try:
+        g = _grammar(domain)
+        text = _prompts(domain, b, 1)[0]
+        kept = []
+        for step in range(3):
+            a = b.generate([Request(text, g, (), 16, session="ep")])[0]
+            kept.append(b.sessions._items["ep"][1])
+            text = text + a.text + f"<|end|>\n<|user|>\nObservation: step {step}.<|end|>\n<|assistant|>\n"
+    finally:
+        handle.remove()
+    assert masks and all(m is None for m in masks)
+    assert all(x is y for x, y in zip(kept[0], kept[2], strict=True))  # the same layer objects, reused
+
+
+def test_passes_under_a_narrow_grammar_compute_only_the_allowed_logits_and_pick_the_same(domain, tiny, monkeypatch):
+    """On the CPU a pass whose rows' grammars allow few tokens computes only those tokens' logits (the
+    output layer is a fifth of SmolLM2's weights): the same completions as with the whole layer, batched
+    and one row, constrained and (all logits) unconstrained."""
+    from adaptbench.llm import decode
+    from adaptbench.llm.backend import Request
+
+    b = _sharp(tiny)
+    g = _grammar(domain)
+    prompts = _prompts(domain, b, 3)
+    reqs = [Request(p, g if i != 2 else None, (), 14) for i, p in enumerate(prompts)]
+    narrow, real = [], decode._logits
+
+    def spy(model, head, **kw):
+        narrow.append(head is not None)
+        return real(model, head, **kw)
+
+    monkeypatch.setattr(decode, "_logits", spy)
+    assert not decode.narrow_head(b.model)  # the tiny model's output layer is too small to gain
+    monkeypatch.setattr(decode, "HEAD_MIN", 0)
+    assert decode.narrow_head(b.model)
+    runs = [[c.text for c in b.generate(reqs)], [c.text for c in b.generate(reqs[:2])],
+            [c.text for c in b.generate(reqs[:1])]]
+    assert any(narrow) and not all(narrow)
+    monkeypatch.setattr(decode, "narrow_head", lambda model: False)
+    narrow.clear()
+    assert runs == [[c.text for c in b.generate(reqs)], [c.text for c in b.generate(reqs[:2])],
+                    [c.text for c in b.generate(reqs[:1])]]
+    assert not any(narrow)

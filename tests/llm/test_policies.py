@@ -22,13 +22,15 @@ def _offline(d, p, t):
 
 @pytest.mark.parametrize("agent", list(AGENTS))
 def test_each_agent_runs_batched_and_every_action_parses(domain, backend, agent):
-    from adaptbench.harness.batches import run_batched
+    from adaptbench.harness.batches import max_steps, run_batched
     from adaptbench.llm.policies import LLMPolicy
 
     policy = LLMPolicy(backend, domain, agent, max_tokens=16, every=2)
     jobs = [Job(agent, "juan", "eggs", 0), Job(agent, "miranda", "cereal", 1)]
     recs = list(run_batched(jobs, domain, policy, _offline, batch=2, steps=3))
-    assert sorted((r["persona"], r["n_steps"]) for r in recs) == [("juan", 3), ("miranda", 3)]
+    n = max_steps(policy, 3)  # the budget, 3; always-ask (a question every 2 steps) 3 x (1 + 1/2) = 4
+    assert n == (4 if AGENTS[agent] == "always_ask" else 3)
+    assert sorted((r["persona"], r["n_steps"]) for r in recs) == [("juan", n), ("miranda", n)]
     for r in recs:
         assert r["agent_config"]["agent"] == agent and r["agent_config"]["prompt"] == AGENTS[agent]
         for s in r["steps"]:

@@ -70,7 +70,8 @@ def _backend(args, model: str):
         if args.backend == "openai":
             plain = getattr(args, "server", "vllm") == "transformers-serve"
             backend = make_backend("openai", url=args.url, model=model, tokenizer=args.tokenizer or model,
-                                   text_prompts=plain, grammar_field=not plain, **_sampling(args))
+                                   text_prompts=plain, grammar_field=not plain,
+                                   concurrency=max(16, getattr(args, "batch", None) or 16), **_sampling(args))
             backend.probe()
             return backend
         return make_backend("transformers", model=model, device=args.device, **_cpu_settings(args, model),
@@ -94,7 +95,7 @@ def _cpu_settings(args, model: str) -> dict:
     dtype, batch = getattr(args, "dtype", None), getattr(args, "batch", None)
     if args.device != "cpu":
         return {"dtype": dtype or "auto", "batch_size": batch or 16}
-    s = cpu_defaults(model)
+    s = cpu_defaults(model, batch)
     return {"dtype": dtype or s.dtype, "threads": s.threads, "batch_size": batch or s.batch}
 
 

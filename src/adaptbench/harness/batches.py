@@ -21,7 +21,7 @@ import traceback
 from pathlib import Path
 
 from ..harness.byagent import ByAgent, Same
-from ..harness.episode import Episode, iter_batch
+from ..harness.episode import Episode, Ticks, iter_batch
 from ..harness.output import RolloutResult, write_all
 from ..harness.record import EpisodeRecord
 from ..harness.results import ResultsFile, episode_key
@@ -66,12 +66,14 @@ def safe_record(ep: Episode, job, config: dict, spec_hash: str, notes: tuple = (
 
 
 def run_batched(jobs, domain, policy, make_user, batch: int = 16, config: dict | None = None,
-                steps: int | None = None):
+                steps: int | None = None, ticks: bool = False):
     """Run the jobs, `batch` at a time; yields each finished episode's record. `make_user(domain,
     persona, task)` returns the episode's user (with `.bind(env)` if it reads the state); `config` is
     the agent configuration recorded (by default `policy.config()` with the first user's); `steps` is
-    the step budget (default 50; `max_steps(policy, steps)` per episode). With several agents, `policy` is a dict agent name ->
-    Policy (and `config`, if given, a dict agent name -> configuration)."""
+    the step budget (default 50; `max_steps(policy, steps)` per episode). With several agents, `policy` is a
+    dict agent name -> Policy (and `config`, if given, a dict agent name -> configuration). With `ticks`,
+    `Ticks(n)` items come between the records: n steps taken each round, and an episode's unused budget just
+    before its record (so the ticks of a job add up to its budget, `step_budget`)."""
     pending: dict = {}  # episode id -> (job, user)
     policies, configs = _by_agent(policy, config)
     router = ByAgent(policies) if isinstance(policy, dict) else policy
@@ -86,11 +88,24 @@ def run_batched(jobs, domain, policy, make_user, batch: int = 16, config: dict |
             pending[episode_id(job)] = (job, user)
             yield episode_id(job), env
 
-    for ep in iter_batch(router, episodes(), batch, catch=True):
+    for ep in iter_batch(router, episodes(), batch, catch=True, ticks=ticks):
+        if isinstance(ep, Ticks):
+            if ep.steps:
+                yield ep
+            continue
         job, user = pending.pop(ep.id)
+        if ticks and ep.env.max_steps > len(ep.steps):
+            yield Ticks(ep.env.max_steps - len(ep.steps))
         if configs[job.agent] is None:
             configs[job.agent] = {**policies[job.agent].config(), **_user_config(user), "max_steps": steps or MAX_STEPS}
         yield safe_record(ep, job, configs[job.agent], domain.spec_hash, _notes(policies[job.agent], job))
+
+
+def step_budget(jobs, policy, steps: int | None = None) -> int:
+    """The steps the jobs may take in all (each its agent's `max_steps`, or `steps`): a progress bar's
+    total when it moves by `Ticks`."""
+    policies, _ = _by_agent(policy, None)
+    return sum(max_steps(policies[j.agent], steps or MAX_STEPS) for j in jobs)
 
 
 def _by_agent(policy, config) -> tuple:
@@ -131,9 +146,10 @@ def rollout_policy(jobs, out: Path, domain, policy, make_user, batch: int = 16, 
         res.present = len(set(jobs)) - len(todo)
 
         def work(js):
-            return run_batched(js, domain, policy, make_user, batch, config, steps)
+            return run_batched(js, domain, policy, make_user, batch, config, steps, ticks=progress)
 
-        write_all(store, run_stream_pool(todo, workers, work), len(todo), res, out, progress)
+        total = step_budget(todo, policy, steps) if progress else len(todo)
+        write_all(store, run_stream_pool(todo, workers, work), total, res, out, progress, unit="step")
     return res
 
 

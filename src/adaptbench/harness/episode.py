@@ -17,6 +17,7 @@ answer, identical to the one it would have computed alone. Other users answer in
 from __future__ import annotations
 
 import traceback
+from dataclasses import dataclass
 
 from ..runtime.env import Env
 from .policy import Decision, Policy, Turn, View
@@ -95,13 +96,14 @@ def run_batch(policy: Policy, envs: list) -> list:
     return [finished[eid] for eid, _ in envs]
 
 
-def iter_batch(policy: Policy, envs, width: int | None = None, catch: bool = False):
+def iter_batch(policy: Policy, envs, width: int | None = None, catch: bool = False, ticks: bool = False):
     """Run episodes together and yield each `Episode` as it finishes (in finishing order). `envs` is any
     iterable of (episode id, env), a generator included, drawn as slots free up: at most `width`
     episodes run at once (None: all). Each round `policy.act_batch` decides for every running episode
     in one call. With `catch`, an exception while stepping one episode's action ends that episode with
     `error` = (message, traceback) and the others go on; an exception from the policy ends the batch,
-    and the policy forgets every episode still running."""
+    and the policy forgets every episode still running. With `ticks`, each round also yields `Ticks(n)`
+    (n: the steps it took), for a progress bar that moves while long episodes run."""
     if width is not None and width < 1:
         raise ValueError(f"batch width must be at least 1 (got {width})")
     source = iter(envs)
@@ -118,10 +120,20 @@ def iter_batch(policy: Policy, envs, width: int | None = None, catch: bool = Fal
                 continue
             if not running:
                 return
+            before = sum(len(ep.steps) for ep in running)
             _advance(policy, running, catch)
+            if ticks:
+                yield Ticks(sum(len(ep.steps) for ep in running) - before)
     finally:
         for ep in running:
             policy.end(ep.id)
+
+
+@dataclass(frozen=True)
+class Ticks:
+    """Not an episode: `steps` steps were taken (progress for a bar; `iter_batch(ticks=True)`)."""
+
+    steps: int
 
 
 def _refill(policy: Policy, source, running: list, width: int | None, catch: bool = False) -> None:

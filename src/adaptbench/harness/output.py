@@ -21,15 +21,23 @@ class RolloutResult:
     error_samples: list = field(default_factory=list)
 
 
-def write_all(store: ResultsFile, records, total: int, res: RolloutResult, out, progress: bool = True) -> None:
+def write_all(store: ResultsFile, records, total: int, res: RolloutResult, out, progress: bool = True,
+              unit: str = "ep") -> None:
     """Append each record as it comes (duplicates skipped), with a progress bar over `total`; on
-    `Interrupted` mark `res` and re-raise (what was written stays)."""
+    `Interrupted` mark `res` and re-raise (what was written stays). With `unit` "step", `records` also
+    holds `Ticks` (steps taken, `batches.run_batched(ticks=True)`) and the bar counts steps: it moves
+    while long episodes run (a model's episode can take minutes)."""
     from ..progress import progress_bar
+    from .episode import Ticks
 
-    bar = progress_bar(total, f"rollout -> {Path(out).name}") if progress else None
+    bar = progress_bar(total, f"rollout -> {Path(out).name}", unit=unit) if progress else None
     try:
         for record in records:
-            _write(store, record, bar, res)
+            if isinstance(record, Ticks):
+                if bar:
+                    bar.update(record.steps)
+                continue
+            _write(store, record, bar, res, step=unit == "step")
     except Interrupted:
         res.interrupted = True
         raise
@@ -38,7 +46,7 @@ def write_all(store: ResultsFile, records, total: int, res: RolloutResult, out, 
             bar.close()
 
 
-def _write(store: ResultsFile, record: dict, bar, res: RolloutResult) -> None:
+def _write(store: ResultsFile, record: dict, bar, res: RolloutResult, step: bool = False) -> None:
     if not store.append(record):
         return
     res.ran += 1
@@ -51,4 +59,5 @@ def _write(store: ResultsFile, record: dict, bar, res: RolloutResult) -> None:
         rate = record.get("satisfaction_rate")
         note = "error" if "error" in record else ("n/a" if rate is None else f"{rate:.0%}")
         bar.set_postfix_str(f"{record['agent']} {record['persona']}/{record['task']} {note}", refresh=False)
-        bar.update()
+        if not step:
+            bar.update()

@@ -16,6 +16,7 @@ import sys
 from contextlib import contextmanager
 
 from ..errors import AdaptError
+from .episode import Ticks
 
 POLL_SECONDS = 0.2
 
@@ -128,8 +129,9 @@ def _collect(total: int, procs: list, result_q):
                 raise WorkerDied(f"a worker died (exit code {dead[0].exitcode}) with episodes in flight")
             _wait(procs, result_q)
             continue
-        got += 1
-        yield result_q.get()
+        item = result_q.get()
+        got += not isinstance(item, Ticks)  # progress ticks between the records are not results
+        yield item
 
 
 def _wait(procs: list, result_q) -> None:

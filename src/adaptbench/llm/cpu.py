@@ -7,7 +7,8 @@ its own float32 with 16 episodes batched. A real model (SmolLM2-135M: 538 MB in 
 in docs/smollm2.md (`python bench/bench_llm.py --model models/smollm2 --settings`): each step reads a
 few hundred new prompt tokens per episode (compute-bound: two threads and bfloat16 help, on a CPU with
 native bfloat16 instructions) and decodes ~10 tokens (memory-bound on the weights; bfloat16 pays off
-only when 16 rows share each pass). `--dtype`, `--batch` given on the command line win.
+only when 16 rows share each pass: one episode at a time, `--batch 1`, stays in its own precision).
+`--dtype`, `--batch` given on the command line win.
 """
 
 from __future__ import annotations
@@ -47,9 +48,13 @@ def native_bf16() -> bool:
     return any(f in flags.split() for f in ("avx512_bf16", "amx_bf16"))
 
 
-def cpu_defaults(model: str) -> CpuSettings:
-    """The measured-fastest settings for a model directory on this CPU."""
+def cpu_defaults(model: str, batch: int | None = None) -> CpuSettings:
+    """The measured-fastest settings for a model directory on this CPU (`batch`: the episodes batched, when
+    given). One episode at a time keeps a real model in its own precision: decoding one row in bfloat16
+    measured 2.5x slower than in float32 (SmolLM2-135M's shape, 1 thread: 3.7 against 9.1 tokens/s,
+    issue 29), and a step decodes more than it gains in reading its new turn faster."""
     if weight_bytes(model) < LARGE:
-        return CpuSettings(threads=1, dtype="auto", batch=16)
-    return CpuSettings(threads=max(1, min(2, os.cpu_count() or 1)), dtype="bfloat16" if native_bf16() else "auto",
-                       batch=16)
+        return CpuSettings(threads=1, dtype="auto", batch=batch or 16)
+    bf16 = native_bf16() and batch != 1
+    return CpuSettings(threads=max(1, min(2, os.cpu_count() or 1)), dtype="bfloat16" if bf16 else "auto",
+                       batch=batch or 16)

@@ -35,6 +35,8 @@ import torch
 from transformers import DynamicCache
 from transformers.cache_utils import DynamicLayer
 
+from .constrained import unpack_bits
+
 _POOL: list = []
 os.register_at_fork(after_in_child=_POOL.clear)  # a forked worker has no threads: it starts its own pool
 
@@ -149,27 +151,26 @@ def cache_arg(model, cache) -> dict:
     return {_CACHE_ARG[kind]: cache}
 
 
-def _layers(cache: DynamicCache) -> list:
-    return [(layer.keys, layer.values) for layer in cache.layers]
-
-
-def _cache(layers: list, config) -> DynamicCache:
-    return DynamicCache(ddp_cache_data=layers, config=config)
+def _n_layers(model) -> int:
+    return len(DynamicCache(config=model.config).layers)
 
 
 SHORT = 256  # rows with a cache and at most this many new tokens read them in one batched pass
 
 
 def reuse(row: Row, sessions: Sessions) -> list | None:
-    """Take the row's session cache (or, for a session without one, the kept cache sharing the longest
-    prefix, `Sessions.shared`) and keep the prefix it shares with the row's prompt (at least the
-    prompt's last token is left to read, for the first new token's logits); sets `row.reused`."""
+    """Take the row's session cache (its own `BufferLayer`s, cut to the prefix it shares with the row's
+    prompt and written on in place) or, for a session without one, a copy of the kept cache sharing the
+    longest prefix (`Sessions.shared`); at least the prompt's last token is left to read, for the first
+    new token's logits. Sets `row.reused`."""
     hit = sessions.take(row.session)
     row.reused = 0
-    return _start_from(row, hit if hit is not None else sessions.shared(row.prompt))
+    if hit is not None:
+        return _start_from(row, hit, own=True)
+    return _start_from(row, sessions.shared(row.prompt))
 
 
-def _start_from(row: Row, hit) -> list | None:
+def _start_from(row: Row, hit, own: bool = False) -> list | None:
     if hit is None:
         return None
     tokens, cached = hit
@@ -177,93 +178,169 @@ def _start_from(row: Row, hit) -> list | None:
     if start <= 0:
         return None
     row.reused = start
-    return [(k[:, :, :start], v[:, :, :start]) for k, v in cached]
+    if own:
+        for layer in cached:
+            layer.truncate(start)
+        return list(cached)
+    room = len(row.prompt) - start + row.max_tokens  # what the row reads and decodes next: no second copy
+    return [BufferLayer(layer.keys[:, :, :start], layer.values[:, :, :start], room) for layer in cached]
 
 
-def _donor(row: Row, donors: list):
-    """The (tokens, layers) read earlier in this call sharing the longest prefix with the row's prompt."""
-    best = max(donors, key=lambda d: common_prefix(d[0], row.prompt), default=None)
-    return best if best is not None and common_prefix(best[0], row.prompt) >= SHARED_MIN else None
-
-
-def prefill(model, row: Row, layers: list | None):
-    """Read the row's prompt after its `row.reused` cached tokens; returns (last logits [V], layers)."""
+def prefill(model, row: Row, layers: list | None, room: int = 0):
+    """Read the row's prompt after its `row.reused` cached tokens into `layers` (`BufferLayer`s; None:
+    new ones), leaving `room` positions to decode into; returns (last logits [V], layers)."""
     start = row.reused
     ids = torch.tensor([row.prompt[start:]], dtype=torch.long, device=model.device)
     pos = torch.arange(start, len(row.prompt), device=model.device).unsqueeze(0)
-    cache = _cache(layers, model.config) if layers else DynamicCache(config=model.config)
+    if layers is None:
+        layers = [BufferLayer(room=room) for _ in range(_n_layers(model))]
+    else:
+        for layer in layers:
+            layer.reserve(len(row.prompt) + room)
+    cache = _cache_of(layers, model.config)
     with grouped_heads(model):
         out = model(input_ids=ids, position_ids=pos, use_cache=True, logits_to_keep=1, **cache_arg(model, cache))
-    return out.logits[0, -1].float(), _layers(cache)
+    return out.logits[0, -1].float(), layers
 
 
-def prefill_many(model, rows: list, layers: list, pad_id: int = 0) -> list:
+def prefill_many(model, rows: list, layers: list, pad_id: int = 0, room: int = 0) -> tuple:
     """Read several cached rows' new tokens in one forward pass: caches left-padded to one width,
-    new tokens right-aligned after them (padding between, masked), each at its own positions. Returns
-    (last logits [V], layers) per row."""
+    new tokens right-aligned after them (padding between, masked), each at its own positions, with
+    `room` positions after them. Returns ([last logits [V] per row], batch cache, attention mask [B, W])."""
     cached = [r.reused for r in rows]
-    new = [len(r.prompt) - r.reused for r in rows]
-    width, room = max(cached), max(new)
-    cache, mask = _stack(model, layers, cached, room)
+    width, most = max(cached), max(len(r.prompt) - r.reused for r in rows)
+    cache, mask = _stack(model, layers, cached, most + room)
     ids, pos, tail = _right_aligned([r.prompt[r.reused:] for r in rows], cached, pad_id)
     dev = model.device
+    mask = torch.cat([mask, tail.to(mask.device)], dim=1)
     with grouped_heads(model):
-        out = model(input_ids=ids.to(dev), attention_mask=torch.cat([mask, tail.to(mask.device)], dim=1),
-                    position_ids=pos.to(dev), use_cache=True, **cache_arg(model, cache),
-                    cache_position=torch.arange(width, width + room, device=dev), logits_to_keep=1)
+        out = model(input_ids=ids.to(dev), attention_mask=mask, position_ids=pos.to(dev), use_cache=True,
+                    **cache_arg(model, cache), cache_position=torch.arange(width, width + most, device=dev),
+                    logits_to_keep=1)
     logits = out.logits[:, -1].float()
-    return [(logits[i], [layer.row_parts(i, cached[i], width, new[i]) for layer in cache.layers])
-            for i in range(len(rows))]
+    return [logits[i] for i in range(len(rows))], cache, mask
 
 
-def prefill_rows(model, rows: list, sessions: Sessions, pad_id: int = 0, together: bool = True) -> list:
-    """(last logits, layers) per row: with `together`, rows with a cache and a short new part in one
-    pass (`prefill_many`), the others (a first step: the whole prompt) one by one. On a GPU one pass
-    saves a forward pass per row; on a CPU reading is compute-bound and the padded pass gains little or
-    loses (measured in 16-episode rollouts: +13% on the tiny model, -15% on a 4-layer one), so the
-    backend turns it off there."""
+def _shared_prefixes(rows: list, layers: list) -> dict:
+    """{row index: length} for the rows without a cache whose prompts share at least SHARED_MIN tokens
+    with another such row: each group's longest common prefix (an agent's system message, the same
+    in every episode)."""
+    new = sorted((i for i, cached in enumerate(layers) if cached is None), key=lambda i: rows[i].prompt)
+    out: dict = {}
+    if len(new) < 2:
+        return out
+    group: list = []
+    shared = 0
+    for a, b in zip(new, new[1:] + [None], strict=True):
+        n = common_prefix(rows[a].prompt, rows[b].prompt) if b is not None else 0
+        if n >= SHARED_MIN:
+            group.append(a)
+            shared = n if len(group) == 1 else min(shared, n)
+            continue
+        if group:
+            out.update({i: shared for i in (*group, a)})
+        group = []
+    return out
+
+
+def _read_shared(model, rows: list, layers: list) -> None:
+    """Read each group's shared prefix once (`_shared_prefixes`) and start its rows from a copy of it."""
+    groups: dict = {}
+    for i, n in _shared_prefixes(rows, layers).items():
+        groups.setdefault((n, tuple(rows[i].prompt[:n])), []).append(i)
+    for (_, prefix), members in groups.items():
+        _, prefix_layers = prefill(model, Row(list(prefix), 0), None)
+        for i in members:
+            layers[i] = _start_from(rows[i], (list(prefix), prefix_layers))
+
+
+def prefill_rows(model, rows: list, sessions: Sessions, pad_id: int = 0, together: bool = True,
+                 room: int = 0) -> tuple:
+    """(last logits, layers) per row, and the batch cache and mask when every row was read in one
+    pass (None otherwise). Rows without a cache that open with the same prefix (≥ SHARED_MIN tokens)
+    start from it, read once. With `together`, rows with a cache and a short new part are read in one
+    pass (`prefill_many`), the others one by one. On a GPU one pass saves a forward pass per row; on a
+    CPU reading is compute-bound and the padded pass gains little or loses (measured in 16-episode
+    rollouts: +13% on the tiny model, -15% on a 4-layer one), so the backend turns it off there.
+    `room`: positions each row's own layers keep free to decode into."""
     layers = [reuse(r, sessions) for r in rows]
+    _read_shared(model, rows, layers)
     short = [i for i, r in enumerate(rows)
              if together and layers[i] is not None and len(r.prompt) - r.reused <= SHORT]
     out: list = [None] * len(rows)
     if len(short) > 1:
-        for i, res in zip(short, prefill_many(model, [rows[i] for i in short], [layers[i] for i in short], pad_id),
-                          strict=True):
-            out[i] = res
-    donors: list = []  # prompts read whole in this call: a later new episode starts from the one it shares most with
+        logits, cache, mask = prefill_many(model, [rows[i] for i in short], [layers[i] for i in short], pad_id,
+                                           room)
+        if len(short) == len(rows):
+            return list(zip(logits, [None] * len(rows), strict=True)), (cache, mask)
+        width = max(rows[i].reused for i in short)
+        for k, i in enumerate(short):
+            new = len(rows[i].prompt) - rows[i].reused
+            out[i] = (logits[k], [layer.row_parts(k, rows[i].reused, width, new) for layer in cache.layers])
     for i, r in enumerate(rows):
         if out[i] is None:
-            if layers[i] is None and donors:
-                layers[i] = _start_from(r, _donor(r, donors))
-            out[i] = prefill(model, r, layers[i])
-            if r.reused == 0:
-                donors.append((r.prompt, out[i][1]))
-    return out
+            out[i] = prefill(model, r, layers[i], room if len(rows) == 1 else 0)
+    return out, None
+
+
+GROW = 4  # a buffer that must grow gains at least 1/GROW of its size (amortised: few copies per episode)
 
 
 class BufferLayer(DynamicLayer):
-    """A cache layer whose keys and values live in a buffer with room to grow: a decoding step writes
-    its position in place instead of concatenating (copying) the whole cache, as `DynamicLayer` does."""
+    """A cache layer whose keys and values live in a buffer [B, heads, capacity, dim] with room to grow:
+    a pass writes its positions in place after the first `n` instead of concatenating (copying) the
+    whole cache, as `DynamicLayer` does every token. `keys`/`values` are views of the first `n`. A
+    layer starts empty (its first update allocates), from a copy of given tensors with `room` more
+    positions, or (`adopt`) on given tensors as its buffer."""
 
-    def __init__(self, keys: torch.Tensor, values: torch.Tensor, room: int):
+    def __init__(self, keys: torch.Tensor | None = None, values: torch.Tensor | None = None, room: int = 0,
+                 adopt: bool = False):
         super().__init__()
-        b, h, n, d = keys.shape
-        self._k, self._v = keys.new_empty((b, h, n + room, d)), values.new_empty((b, h, n + room, d))
-        self._k[:, :, :n], self._v[:, :, :n] = keys, values
-        self.n = n
-        self.dtype, self.device, self.is_initialized = keys.dtype, keys.device, True
+        self._k = self._v = None
+        self.n, self.room = 0, room
+        if keys is None:
+            return
+        if adopt:
+            self._k, self._v, self.n = keys, values, keys.shape[2]
+        else:
+            b, h, n, d = keys.shape
+            self._k, self._v = keys.new_empty((b, h, n + room, d)), values.new_empty((b, h, n + room, d))
+            self._k[:, :, :n], self._v[:, :, :n] = keys, values
+            self.n = n
+        self._ready()
+
+    def _ready(self) -> None:
+        self.dtype, self.device, self.is_initialized = self._k.dtype, self._k.device, True
         self._views()
 
     def _views(self) -> None:
         self.keys, self.values = self._k[:, :, :self.n], self._v[:, :, :self.n]
 
+    def reserve(self, total: int) -> None:
+        """Make room for `total` positions (one copy when the buffer is too small, none otherwise)."""
+        if self._k is None or total <= self._k.shape[2]:
+            return
+        size = max(total, self._k.shape[2] + self._k.shape[2] // GROW)
+        k = self._k.new_empty((*self._k.shape[:2], size, self._k.shape[3]))
+        v = self._v.new_empty((*self._v.shape[:2], size, self._v.shape[3]))
+        k[:, :, :self.n], v[:, :, :self.n] = self.keys, self.values
+        self._k, self._v = k, v
+        self._views()
+
+    def truncate(self, n: int) -> None:
+        """Keep the first `n` positions (later writes overwrite the rest)."""
+        self.n = min(n, self.n)
+        self._views()
+
     def update(self, key_states: torch.Tensor, value_states: torch.Tensor, *args, **kwargs) -> tuple:
         """Write the new positions after the cached ones; returns the cache so far."""
         q = key_states.shape[-2]
-        if self.n + q > self._k.shape[2]:
-            more = max(q, self._k.shape[2])
-            self._k = torch.cat([self._k, self._k.new_empty((*self._k.shape[:2], more, self._k.shape[3]))], dim=2)
-            self._v = torch.cat([self._v, self._v.new_empty((*self._v.shape[:2], more, self._v.shape[3]))], dim=2)
+        if self._k is None:
+            b, h, _, d = key_states.shape
+            self._k = key_states.new_empty((b, h, q + self.room, d))
+            self._v = value_states.new_empty((b, h, q + self.room, d))
+            self._ready()
+        self.reserve(self.n + q)
         self._k[:, :, self.n:self.n + q], self._v[:, :, self.n:self.n + q] = key_states, value_states
         self.n += q
         self._views()
@@ -274,21 +351,37 @@ class BufferLayer(DynamicLayer):
         return self.n
 
     def select(self, rows: torch.Tensor) -> None:
-        """Keep only these batch rows."""
+        """Keep only these batch rows (a copy of the kept rows)."""
         self._k, self._v = self._k[rows], self._v[rows]
         self._views()
 
-    def row_parts(self, k: int, cached: int, width: int, new: int) -> tuple:
-        """Row k after a batched prefill: its `cached` positions before `width` and its `new` last ones."""
-        keys = torch.cat([self.keys[k:k + 1, :, width - cached:width], self.keys[k:k + 1, :, self.n - new:]], dim=2)
-        values = torch.cat([self.values[k:k + 1, :, width - cached:width], self.values[k:k + 1, :, self.n - new:]],
-                           dim=2)
-        return keys, values
+    def row_parts(self, k: int, cached: int, width: int, new: int) -> BufferLayer:
+        """Row k after a batched prefill: its `cached` positions before `width` and its `new` last ones,
+        as a layer of its own (a copy)."""
+        h, d = self._k.shape[1], self._k.shape[3]
+        out = BufferLayer(self._k.new_empty((1, h, cached + new, d)), self._v.new_empty((1, h, cached + new, d)),
+                          adopt=True)
+        out.n = 0
+        out.update(self.keys[k:k + 1, :, width - cached:width], self.values[k:k + 1, :, width - cached:width])
+        out.update(self.keys[k:k + 1, :, self.n - new:], self.values[k:k + 1, :, self.n - new:])
+        return out
 
-    def row(self, k: int, where: torch.Tensor) -> tuple:
-        """Row k's cached positions `where` (its real ones, padding left out), as a batch of one (a copy)."""
+    def row(self, k: int, where: torch.Tensor | None) -> BufferLayer:
+        """Row k's cached positions `where` (its real ones, padding left out; None: all of them), as a
+        layer of its own: a copy, except a batch of one unpadded, which is this layer."""
+        if where is None:
+            if self._k.shape[0] == 1:
+                return self
+            return BufferLayer(self.keys[k:k + 1], self.values[k:k + 1])
         where = where.to(self.keys.device)
-        return self.keys[k:k + 1, :, where], self.values[k:k + 1, :, where]
+        return BufferLayer(self.keys[k:k + 1, :, where], self.values[k:k + 1, :, where], adopt=True)
+
+
+def _cache_of(layers: list, config) -> DynamicCache:
+    """A transformers cache whose layers are these `BufferLayer`s."""
+    cache = DynamicCache(config=config)
+    cache.layers = list(layers)
+    return cache
 
 
 def _stack(model, rows_layers: list, lengths: list, room: int) -> tuple:
@@ -297,20 +390,18 @@ def _stack(model, rows_layers: list, lengths: list, room: int) -> tuple:
     width = max(lengths)
     layers = []
     for li in range(len(rows_layers[0])):
-        k0 = rows_layers[0][li][0]
+        k0 = rows_layers[0][li].keys
         shape = (len(rows_layers), k0.shape[1], width, k0.shape[3])
         ks, vs = k0.new_zeros(shape), k0.new_zeros(shape)
         for r, row in enumerate(rows_layers):
-            k, v = row[li]
+            k, v = row[li].keys, row[li].values
             ks[r, :, width - k.shape[2]:] = k[0]
             vs[r, :, width - v.shape[2]:] = v[0]
         layers.append(BufferLayer(ks, vs, room))
-    cache = DynamicCache(config=model.config)
-    cache.layers = layers
     mask = torch.zeros((len(lengths), width), dtype=torch.long, device=k0.device)
     for r, n in enumerate(lengths):
         mask[r, width - n:] = 1
-    return cache, mask
+    return _cache_of(layers, model.config), mask
 
 
 def decode(model, rows: list, sessions: Sessions, picker, stopped, pad_id: int = 0, together: bool = True) -> float:
@@ -321,34 +412,75 @@ def decode(model, rows: list, sessions: Sessions, picker, stopped, pad_id: int =
     of their own (a row's tokens of one step are read together at the next); `stopped(row_index, row)
     -> bool` says a row is over after its newest token (EOS, stop string, limit). Sessions get their
     rows' caches back. `together`: see `prefill_rows`. Returns the seconds spent reading the prompts
-    (the rest is decoding)."""
+    (the rest is decoding).
+
+    The cache: a single row decodes into its own layers (the session's buffer, written in place: no
+    copy per step) with no attention mask; several rows share one left-padded batch buffer, with a
+    mask only while their lengths differ. In a large batch cache (`COMPACT_BYTES`) a row that stops
+    stays (reading a pad token, its logits unused) until half the rows have stopped: then the running
+    rows' caches are copied once into a smaller buffer, instead of once per stopping row."""
     t0 = time.perf_counter()
     picker.start(list(range(len(rows))))  # the first masks need no prompt: computed while the prompts are read
-    first, layers = zip(*prefill_rows(model, rows, sessions, pad_id, together), strict=True)
+    room = max(r.max_tokens for r in rows)
+    read_rows, batch = prefill_rows(model, rows, sessions, pad_id, together, room)
+    first, layers = zip(*read_rows, strict=True)
     reading = time.perf_counter() - t0
     read = [len(r.prompt) for r in rows]  # each row's tokens in the cache
-    active = list(range(len(rows)))
     logits = torch.stack(first)
-    cache, mask = _stack(model, list(layers), read, max(r.max_tokens for r in rows))
+    cache, mask = batch if batch is not None else _batch_cache(model, list(layers), read, room)
+    narrow = narrow_head(model)
+    slots = list(range(len(rows)))  # the request row in each cache row (None: a stopped row riding along)
+    active = list(slots)
     while active:
         picked = picker.pick(logits, active, {i: len(rows[i].tokens) for i in active}).tolist()
         for k, i in enumerate(active):
             rows[i].tokens.append(picked[k])
         running = _take_forced(rows, [i for i in active if not stopped(i, rows[i])], picker, stopped)
         if len(running) < len(active):
-            _store(rows, active, running, read, cache, mask, sessions)
+            _store(rows, slots, running, read, cache, mask, sessions)
             if not running:
                 break
-            keep = torch.tensor([k for k, i in enumerate(active) if i in running], dtype=torch.long,
-                                device=mask.device)
-            for layer in cache.layers:
-                layer.select(keep)
-            mask, active = mask[keep], [i for i in active if i in running]
-        new = [rows[i].tokens[read[i] - len(rows[i].prompt):] for i in active]
-        logits, mask = _forward(model, cache, mask, new, [read[i] for i in active], pad_id)
-        for i, t in zip(active, new, strict=True):
-            read[i] += len(t)
+            slots = [i if i in running else None for i in slots]
+            if 2 * len(running) <= len(slots) or _nbytes(cache) < COMPACT_BYTES:
+                cache, mask, slots = _compact(cache, mask, slots)
+            active = [i for i in slots if i is not None]
+        new = [rows[i].tokens[read[i] - len(rows[i].prompt):] if i is not None else [pad_id] for i in slots]
+        at = [read[i] if i is not None else 0 for i in slots]
+        out, mask = _forward(model, cache, mask, new, at, pad_id, picker.allowed(active) if narrow else None)
+        logits = out if len(active) == len(slots) else out[[k for k, i in enumerate(slots) if i is not None]]
+        for i, t in zip(slots, new, strict=True):
+            if i is not None:
+                read[i] += len(t)
     return reading
+
+
+def _batch_cache(model, layers: list, read: list, room: int) -> tuple:
+    """(cache, attention mask or None) to decode the rows in: a single row's own layers, else the rows'
+    caches left-padded into one buffer; no mask where no row is padded (attention without an explicit
+    mask: the fast kernels)."""
+    if len(layers) == 1:
+        return _cache_of(layers[0], model.config), None
+    cache, mask = _stack(model, layers, read, room)
+    return cache, None if len(set(read)) == 1 else mask
+
+
+COMPACT_BYTES = 64 * 2**20  # a batch cache smaller than this is compacted as soon as a row stops (copying it
+# costs less than passes over stopped rows: the tiny model's 64 rows measured 20% more CPU a step riding)
+
+
+def _nbytes(cache) -> int:
+    """Bytes of a batch cache's key and value buffers."""
+    k = cache.layers[0]._k
+    return 2 * k.numel() * k.element_size() * len(cache.layers)
+
+
+def _compact(cache, mask, slots: list) -> tuple:
+    """Keep only the running rows in the batch cache (one copy of their caches)."""
+    keep = [k for k, i in enumerate(slots) if i is not None]
+    idx = torch.tensor(keep, dtype=torch.long, device=cache.layers[0].keys.device)
+    for layer in cache.layers:
+        layer.select(idx)
+    return cache, None if mask is None else mask[idx.to(mask.device)], [slots[k] for k in keep]
 
 
 def _take_forced(rows: list, running: list, picker, stopped) -> set:
@@ -369,35 +501,71 @@ def _take_forced(rows: list, running: list, picker, stopped) -> set:
     return running
 
 
-def _store(rows: list, active: list, running: set, read: list, cache, mask: torch.Tensor, sessions: Sessions) -> None:
-    """Give the sessions of the rows that stopped their caches (the tokens read so far)."""
+def _store(rows: list, slots: list, running: set, read: list, cache, mask, sessions: Sessions) -> None:
+    """Give the sessions of the rows that just stopped their caches (the tokens read so far): the
+    cache itself for a single row with no padding, else a copy of the row's real positions."""
     if sessions.limit <= 0:
         return
-    for k, i in enumerate(active):
-        if i in running or rows[i].session is None:
+    for k, i in enumerate(slots):
+        if i is None or i in running or rows[i].session is None:
             continue
-        where = mask[k].nonzero().view(-1)
+        where = None if mask is None else mask[k].nonzero().view(-1)
         sessions.put(rows[i].session, (rows[i].prompt + rows[i].tokens)[:read[i]],
                      [layer.row(k, where) for layer in cache.layers])
 
 
-def _forward(model, cache, mask: torch.Tensor, new: list, read: list, pad_id: int) -> tuple:
-    """One decoding pass: each active row reads its new tokens (most often one; more when its grammar
-    forced some) at its own positions, right-aligned and padded (masked) to the longest."""
+HEAD_TYPES = ("llama", "mistral", "qwen2", "qwen3")  # causal LMs whose logits are the plain output layer's
+NARROW = 4  # a pass computes only the allowed tokens' logits when they are at most 1/NARROW of the vocabulary
+HEAD_MIN = 2**23  # ... and the output layer has at least this many weights (SmolLM2's: 28M; the tiny model's: 0.2M)
+
+
+def narrow_head(model) -> bool:
+    """Whether a pass may compute only the grammar's allowed tokens' logits: on the CPU (where the output
+    layer is a fifth of a small model's weights read per token: SmolLM2's 49,152 x 576), for model types
+    whose logits are the output layer's alone (no scaling or soft-capping), with a bias-free layer large
+    enough to matter (`HEAD_MIN` weights)."""
+    head = model.get_output_embeddings()
+    return (model.device.type == "cpu" and getattr(model.config, "model_type", None) in HEAD_TYPES
+            and hasattr(model, "model") and isinstance(head, torch.nn.Linear) and head.bias is None
+            and head.weight.numel() >= HEAD_MIN)
+
+
+def _logits(model, head, **kwargs) -> torch.Tensor:
+    """The last position's logits [B, V] (float32); with `head` (sorted token ids) only those tokens'
+    are computed, the others -inf (the grammar forbids them: the same logits where allowed)."""
+    cache = kwargs.pop("cache")
+    if head is None:
+        return model(**kwargs, **cache_arg(model, cache), logits_to_keep=1).logits[:, -1].float()
+    h = model.model(**kwargs, **cache_arg(model.model, cache)).last_hidden_state[:, -1]
+    w = model.get_output_embeddings().weight
+    out = torch.full((h.shape[0], w.shape[0]), float("-inf"), dtype=torch.float32, device=h.device)
+    out[:, head] = torch.nn.functional.linear(h, w[head]).float()
+    return out
+
+
+def _forward(model, cache, mask, new: list, read: list, pad_id: int, head=None) -> tuple:
+    """One decoding pass: each row reads its new tokens (most often one; more when its grammar forced
+    some) at its own positions, right-aligned and padded (masked) to the longest. `mask` None: no
+    padding so far (it is made when rows read different numbers of tokens). `head`: the token ids whose
+    logits are needed (None: all; `_logits`). Returns (logits [B, V], mask)."""
     width, most = cache.get_seq_length(), max(len(t) for t in new)
     dev = model.device
+    if mask is None and any(len(t) != most for t in new):
+        mask = torch.ones((len(new), width), dtype=torch.long, device=cache.layers[0].keys.device)
     if most == 1:
         ids = torch.tensor(new, dtype=torch.long, device=dev)
         pos = torch.tensor(read, dtype=torch.long, device=dev).view(-1, 1)
-        mask = torch.cat([mask, mask.new_ones((mask.shape[0], 1))], dim=1)
+        if mask is not None:
+            mask = torch.cat([mask, mask.new_ones((mask.shape[0], 1))], dim=1)
     else:
         ids, pos, tail = _right_aligned(new, read, pad_id)
         ids, pos = ids.to(dev), pos.to(dev)
-        mask = torch.cat([mask, tail.to(mask.device)], dim=1)
+        if mask is not None:
+            mask = torch.cat([mask, tail.to(mask.device)], dim=1)
     with grouped_heads(model) if most > 1 else nullcontext():
-        out = model(input_ids=ids, attention_mask=mask, position_ids=pos, use_cache=True, **cache_arg(model, cache),
-                    cache_position=torch.arange(width, width + most, device=dev), logits_to_keep=1)
-    return out.logits[:, -1].float(), mask
+        logits = _logits(model, head, input_ids=ids, attention_mask=mask, position_ids=pos, use_cache=True,
+                         cache=cache, cache_position=torch.arange(width, width + most, device=dev))
+    return logits, mask
 
 
 def _right_aligned(chunks: list, starts: list, pad_id: int) -> tuple:
@@ -423,6 +591,14 @@ def loop_supported(model) -> bool:
     except Exception:  # noqa: BLE001 - any model whose cache we cannot build takes the generic path
         return False
     return bool(cache.layers) and all(type(layer) is DynamicLayer for layer in cache.layers)
+
+
+def _or_rows(words: torch.Tensor) -> torch.Tensor:
+    """Bitwise or of the rows of an int32 tensor [n, W]."""
+    out = words[0].clone()
+    for row in words[1:]:
+        out |= row
+    return out
 
 
 class Picker:
@@ -451,6 +627,16 @@ class Picker:
         if self.sampler is not None:
             return self.sampler.pick(logits, active)
         return logits.argmax(dim=-1)
+
+    def allowed(self, active: list) -> torch.Tensor | None:
+        """The token ids any of the active rows' next masks allows (sorted), when every active row is
+        constrained and they are at most 1/NARROW of the vocabulary; else None (all logits needed)."""
+        if self.proc is None or not active or len(self.proc.live(active)) != len(active):
+            return None
+        words = self.proc.bitmask[torch.tensor(active, dtype=torch.long)]
+        union = _or_rows(words)
+        ids = unpack_bits(union.unsqueeze(0), self.proc.vocab)[0].nonzero().view(-1)
+        return ids if 0 < len(ids) <= self.proc.vocab // NARROW else None
 
     def start(self, rows: list) -> None:
         """Start computing the rows' first masks (on the worker thread: the prompts are read meanwhile)."""
