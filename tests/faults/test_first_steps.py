@@ -37,7 +37,7 @@ def test_eval_markdown_without_a_path_prints_markdown(tmp_path):
     got = adapt(["eval", runs, "--markdown"], cwd=tmp_path)
     assert got.returncode == 0, got.stderr
     assert got.stdout.startswith("**Table 1**\n\n| Paper row | Method |") and "**Table 2**" in got.stdout
-    assert "| teacher | oracle | 1 | 100.0% ± 0.0% |" in got.stdout
+    assert "| teacher | oracle | 1 | 50 | 100.0% ± 0.0% |" in got.stdout
     assert [p.name for p in tmp_path.iterdir()] == ["r.jsonl"]  # nothing written: no file named '-'
     to_file = adapt(["eval", runs, "--markdown", tmp_path / "t.md"])
     assert to_file.returncode == 0 and "| Paper row |" not in to_file.stdout

@@ -42,7 +42,7 @@ def row(step: int, kind: str = "teacher", **kw) -> dict:
                         {"role": "user", "content": "What is the next action required to achieve the task: eggs?"}],
                 kind=kind, chosen=None if kind == "skipped" else act("Look for pan"), rejected=act("Look for eggs"),
                 skip_reason="same_action" if kind == "skipped" else None, teacher_action="Look for pan",
-                student_action="Look for eggs", persona="sarah", task="eggs", seed=0, interaction=1, step=step,
+                student_action="Look for eggs", persona="sarah", task="eggs", seed=100, interaction=1, step=step,
                 truncated=False, prompt_tokens=20)
     base.update(kw)
     return base

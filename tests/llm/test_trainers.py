@@ -223,7 +223,7 @@ def _adapt(*args, timeout=240):
 
 def _data(tiny, out):
     got = _adapt("train", "data", "--student", tiny, "--out", out, "--personas", "sarah", "--tasks", "eggs",
-                 "--split", "1", "--batch", "1")
+                 "--split", "1", "--batch", "1", "--max-steps", "12")
     assert got.returncode == 0, got.stderr
     return json.loads((out / "summary.json").read_text())
 
