@@ -389,4 +389,7 @@ def add_commands(sub) -> None:
     q.add_argument("--quiet", action="store_true")
     q.set_defaults(func=_cmd_model_pretrain)
     _add_student_command(msub)
+    from .curve import add_curve_command
+
+    add_curve_command(msub)
     _add_gguf_commands(msub)

@@ -39,8 +39,8 @@ class StudentSettings:
     tasks: tuple = field(default=())  # empty: every task
 
     def agents(self) -> tuple:
-        """(agent, seeds) of the teacher trajectories."""
-        return (("oracle-ask", self.ask_seeds), ("oracle", self.oracle_seeds))
+        """(agent, seeds) of the teacher trajectories (an agent with no seeds left out)."""
+        return tuple((a, seeds) for a, seeds in (("oracle-ask", self.ask_seeds), ("oracle", self.oracle_seeds)) if seeds)
 
 
 def training_personas(domain, split: str) -> tuple:
