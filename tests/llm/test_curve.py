@@ -56,7 +56,7 @@ def test_a_micro_curve_at_two_sizes(tmp_path, capsys):
     out = tmp_path / "c"
     assert main(["model", "curve", "--out", str(out), "--sizes", "32x1,48x1", "--seeds", "100", "--tasks",
                  "toast_coffee", "--steps", "4", "--every", "2", "--episodes", "2", "--max-steps", "5",
-                 "--quiet"]) == 0
+                 "--initial", "--quiet"]) == 0
     curve = json.loads((out / "curve.json").read_text())
     assert curve["split"] == "0" and curve["scene_seeds"] == [100]
     assert [s["size"] for s in curve["sizes"]] == ["h32-l1", "h48-l1"]

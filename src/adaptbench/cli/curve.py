@@ -39,7 +39,7 @@ def _cmd_curve(args) -> int:
         s = CurveSettings(split=args.split, seeds=tuple(parse_seeds(args.seeds)), sizes=parse_sizes(args.sizes),
                           steps=args.steps, every=args.every or args.steps, lr=args.lr, episodes=args.episodes,
                           max_steps=args.max_steps, batch=args.batch, seed=args.seed, threads=args.threads,
-                          tasks=tasks)
+                          tasks=tasks, initial=args.initial)
     except ValueError as exc:
         _fail(str(exc))
     if min(s.steps, s.every, s.episodes, s.max_steps, s.batch, s.threads) < 1:
@@ -84,5 +84,7 @@ def add_curve_command(msub) -> None:
     q.add_argument("--batch", type=int, default=d.batch, help=f"evaluation episodes stepped together (default {d.batch})")
     q.add_argument("--threads", type=int, default=d.threads, help="torch threads (default 1)")
     q.add_argument("--seed", type=int, default=d.seed, help="initialisation, data order, evaluation subset (default 0)")
+    q.add_argument("--initial", action="store_true", help="also evaluate the untrained model (update 0; slow: "
+                   "a random model's every step fails, so its episodes run to --max-steps)")
     q.add_argument("--quiet", action="store_true")
     q.set_defaults(func=_cmd_curve)

@@ -6,8 +6,8 @@ questions), evaluated at checkpoints on the split's unseen personas:
 1. Teacher data: the plain `oracle` on the split's training personas x the tasks, scene seeds from 100 up
    (`harness.seeds`), into OUT/data/oracle.jsonl (resumable, like `adapt rollout`).
 2. For each size (hidden x layers): a tiny model (`llm.tiny.init_tiny`) trained by `training.pretrain`
-   (one packed sequence per episode, the loss on every action); every `every` updates and after the last,
-   the model is saved to OUT/<size>/update-N and rolled out as the `planner` (greedy, the offline user,
+   (one packed sequence per episode, the loss on every action); every `every` updates and after the last
+   (and before the first with `initial`: slow, as a random model's episodes run to the budget), the model is saved to OUT/<size>/update-N and rolled out as the `planner` (greedy, the offline user,
    `max_steps` steps) on `episodes` episodes of the split's unseen personas x tasks x evaluation seeds 0-3
    (a fixed subset, the same at every checkpoint and size), into OUT/<size>/eval-N.jsonl.
 3. OUT/curve.json: the settings, and per size and checkpoint the updates, the training loss, the share of
@@ -47,6 +47,7 @@ class CurveSettings:
     seed: int = 0  # initialisation, data order and the evaluation subset
     threads: int = 1
     workers: int = 1  # teacher rollout processes
+    initial: bool = False  # also evaluate the untrained model (slow: every step fails, to the step budget)
     tasks: tuple = field(default=())  # empty: every task
 
     def size_name(self, size: tuple) -> str:
@@ -140,11 +141,16 @@ def train_size(domain, data: Path, size: tuple, s: CurveSettings, out: Path, job
             f"{sc['dishes']}/{sc['dishes_of']}, satisfaction {sc['satisfaction'] or 0:.1%} "
             f"({points[-1]['eval_seconds']:.0f} s)")
 
-    points.append({"update": 0, "loss": None, **evaluate(domain, base, jobs, here / "eval-0.jsonl", s)})
+    if s.initial:
+        points.append({"update": 0, "loss": None, **evaluate(domain, base, jobs, here / "eval-0.jsonl", s)})
     r = pretrain(domain, base, [data], here / "final", steps=s.steps, lr=s.lr, seed=s.seed, threads=s.threads,
                  log=log, every=s.every, on_checkpoint=checkpoint)
-    return {"size": s.size_name(size), "hidden": size[0], "layers": size[1], "parameters": _parameters(base),
-            "pretrain": asdict(r), "points": points}
+    entry = {"size": s.size_name(size), "hidden": size[0], "layers": size[1], "parameters": _parameters(base),
+             "pretrain": asdict(r), "points": points}
+    provenance = {"settings": asdict(s), "split": s.split, "scene_seeds": sorted(s.seeds), "teacher": "oracle",
+                  "spec_hash": domain.spec_hash, "curve": entry}
+    (here / "final" / "student.json").write_text(json.dumps(provenance, indent=1) + "\n")
+    return entry
 
 
 def _parameters(model_dir) -> int:
