@@ -150,3 +150,17 @@ def test_the_smoke_pipeline_end_to_end_killed_mid_stage_and_resumed(tmp_path):
     assert (out / "report" / "temporal.png").stat().st_size > 0 and (out / "report" / "questions.png").is_file()
     info = json.loads((out / "base" / "student.json").read_text())
     assert info["settings"]["split"] == "0" and info["settings"]["ask_seeds"] == []
+
+
+def test_a_sigkill_of_the_pipeline_alone_ends_its_stage_too(tmp_path):
+    out = tmp_path / "out"
+    p = _driver(tmp_path, "30")
+    t0 = time.time()
+    while not ((out / "log.txt").is_file() and "b" in (out / "log.txt").read_text().split()):
+        assert time.time() - t0 < 60
+        time.sleep(0.05)
+    p.kill()  # the pipeline's process only, not its group
+    p.wait()
+    time.sleep(1)
+    ps = subprocess.run(["ps", "-o", "stat=", "-g", str(p.pid)], capture_output=True, text=True).stdout.split()
+    assert [s for s in ps if not s.startswith("Z")] == [], ps  # the stage b child died with it (a zombie at most)

@@ -26,7 +26,8 @@ training personas, scene seeds 0-3 or fewer; everything else trains on scene see
 
 Before it starts, the pipeline prints its estimate: each stage's seconds from a cost model (`COSTS`:
 seconds per unit of work, measured at smoke scale on 2 shared CPU cores, one torch thread) times its
-units. The stages run as child processes of `python -m adaptbench.cli` in the pipeline's process group.
+units. The stages run as child processes of `python -m adaptbench.cli` in the pipeline's process group; on
+Linux a child dies with the pipeline (a SIGKILL of the pipeline alone leaves no stage running).
 """
 
 from __future__ import annotations
@@ -227,7 +228,7 @@ def run_stage(stage: Stage, out: Path, log=print, runner=None) -> float:
     for cmd in stage.commands:
         argv = [sys.executable, "-m", "adaptbench.cli", *cmd] if runner is None else runner(cmd)
         log(f"$ adapt {' '.join(cmd)}")
-        rc = subprocess.run(argv, env={**os.environ, "PYTHONUNBUFFERED": "1"}).returncode
+        rc = subprocess.run(argv, env={**os.environ, "PYTHONUNBUFFERED": "1"}, preexec_fn=_die_with_parent).returncode
         if rc != 0:
             raise StageFailed(stage.name, cmd, rc)
     sec = time.perf_counter() - t0
@@ -237,6 +238,18 @@ def run_stage(stage: Stage, out: Path, log=print, runner=None) -> float:
                                "seconds": round(sec, 1), "estimate": round(stage_seconds(stage), 1)}, indent=1) + "\n")
     tmp.replace(marker)  # atomic: a kill leaves the marker whole or absent
     return sec
+
+
+def _die_with_parent() -> None:
+    """In the child, before exec: on Linux, be killed when the pipeline process dies (SIGKILL included), so a
+    rerun never meets an orphaned stage still writing its files."""
+    try:
+        import ctypes
+        import signal
+
+        ctypes.CDLL(None).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        pass
 
 
 class StageFailed(RuntimeError):
