@@ -247,13 +247,15 @@ def _cmd_model_student(args) -> int:
     tasks = () if args.tasks == "all" else tuple(_names(args.tasks, domain.task, "task"))
     try:
         training_personas(domain, args.split)
-        s = StudentSettings(split=args.split, tasks=tasks, ask_seeds=tuple(parse_seeds(args.ask_seeds)),
-                            oracle_seeds=tuple(parse_seeds(args.oracle_seeds)), hidden=args.hidden,
+        s = StudentSettings(split=args.split, tasks=tasks, ask_seeds=_seeds_or_none(args.ask_seeds, parse_seeds),
+                            oracle_seeds=_seeds_or_none(args.oracle_seeds, parse_seeds), hidden=args.hidden,
                             layers=args.layers, steps=args.steps, lr=args.lr, seed=args.seed, workers=args.workers)
     except ValueError as exc:
         _fail(str(exc))
     if args.steps < 1 or args.workers < 1:
         _fail("--steps and --workers must be at least 1")
+    if not s.ask_seeds and not s.oracle_seeds:
+        _fail("--ask-seeds and --oracle-seeds are both none: give one of them scene seeds (e.g. --oracle-seeds 100)")
     from ..harness.seeds import overlap_message
 
     for flag, seeds in (("--ask-seeds", s.ask_seeds), ("--oracle-seeds", s.oracle_seeds)):
@@ -271,6 +273,12 @@ def _cmd_model_student(args) -> int:
     return 0
 
 
+def _seeds_or_none(text: str, parse) -> tuple:
+    """Scene seeds of one teacher; `none`: that teacher left out (e.g. --ask-seeds none: the base student,
+    the oracle's episodes only, no questions)."""
+    return () if text.strip().lower() == "none" else tuple(parse(text))
+
+
 def _add_student_command(msub) -> None:
     from ..training.student import StudentSettings
     from .episode import add_spec_option
@@ -285,7 +293,8 @@ def _add_student_command(msub) -> None:
     q.add_argument("--out", required=True, help="directory for the model (data in OUT/data, OUT/student.json)")
     q.add_argument("--split", default=d.split, help=f"split whose unseen personas are left out (default {d.split})")
     q.add_argument("--ask-seeds", default=_seeds_text(d.ask_seeds),
-                   help=f"scene seeds of the oracle-ask episodes (default {_seeds_text(d.ask_seeds)})")
+                   help=f"scene seeds of the oracle-ask episodes (default {_seeds_text(d.ask_seeds)}; `none`: no "
+                        "questions, the base student of the oracle's episodes alone)")
     q.add_argument("--oracle-seeds", default=_seeds_text(d.oracle_seeds),
                    help=f"scene seeds of the oracle episodes (default {_seeds_text(d.oracle_seeds)})")
     q.add_argument("--allow-eval-seeds", action="store_true",
@@ -390,4 +399,7 @@ def add_commands(sub) -> None:
     q.add_argument("--quiet", action="store_true")
     q.set_defaults(func=_cmd_model_pretrain)
     _add_student_command(msub)
+    from .curve import add_curve_command
+
+    add_curve_command(msub)
     _add_gguf_commands(msub)

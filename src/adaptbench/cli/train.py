@@ -233,6 +233,9 @@ def add_commands(sub) -> None:
     from .train_methods import add_methods
 
     add_methods(train_sub)
+    from .reproduce import add_reproduce
+
+    add_reproduce(train_sub)
     for registrar in REGISTRARS:
         registrar(train_sub)
     p.set_defaults(func=lambda args: (p.print_help(), 2)[1])

@@ -174,3 +174,36 @@ def draw_questions(records: list, path: Path) -> None:
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     _save(fig, plt, path)
+
+
+def draw_curve(curve: dict, path: Path) -> None:
+    """A learning curve (`training.curve`): for each model size, the share of dishes completed, the mean
+    satisfaction rate (both ± one standard error) on the evaluation episodes and the training loss, against
+    training updates."""
+    plt = _pyplot()
+    fig, axes = plt.subplots(1, 3, figsize=(15, 4.2))
+    for ax, key, label in zip(axes, ("dishes_rate", "satisfaction", "loss"),
+                              ("dishes completed", "satisfaction rate", "training loss (since the last point)"),
+                              strict=True):
+        for size in curve["sizes"]:
+            pts = [p for p in size["points"] if p.get(key) is not None]
+            if not pts:
+                continue
+            xs = [p["update"] for p in pts]
+            ms = [p[key] for p in pts]
+            line, = ax.plot(xs, ms, marker="o", label=f"{size['size']} ({size['parameters'] / 1e6:.1f}M)")
+            if key != "loss":
+                ses = [p[key.replace("_rate", "") + "_se"] or 0.0 for p in pts]
+                ax.fill_between(xs, [m - s for m, s in zip(ms, ses, strict=True)],
+                                [m + s for m, s in zip(ms, ses, strict=True)], color=line.get_color(), alpha=0.15)
+        ax.set_xlabel("training updates (one oracle episode each)")
+        ax.set_ylabel(label)
+        if key != "loss":
+            ax.set_ylim(-0.02, 1.02)
+        ax.grid(alpha=0.3)
+    n = curve["sizes"][0]["points"][0]["episodes"] if curve["sizes"] and curve["sizes"][0]["points"] else 0
+    axes[0].set_title(f"Dishes completed (split {curve['split']} unseen, {n} episodes)")
+    axes[1].set_title("Satisfaction")
+    axes[2].set_title("Training loss")
+    axes[0].legend(fontsize=8, loc="upper left")
+    _save(fig, plt, path)

@@ -188,10 +188,37 @@ def _log_callback(log, steps: int):
     return Log()
 
 
+def _checkpoint_callback(every: int, steps: int, on_checkpoint):
+    """A TrainerCallback calling `on_checkpoint(update, model, recent_loss)` every `every` updates and after
+    the last one (the model back in training mode afterwards)."""
+    from transformers import TrainerCallback
+
+    class Checkpoints(TrainerCallback):
+        def on_train_begin(self, args, state, control, **kw):
+            self.window = []
+
+        def on_log(self, args, state, control, logs=None, **kw):
+            if logs and "loss" in logs:
+                self.window.append(logs["loss"])
+
+        def on_step_end(self, args, state, control, model=None, **kw):
+            i = state.global_step
+            if i % every == 0 or i == steps:
+                loss = sum(self.window) / len(self.window) if self.window else None
+                self.window = []
+                model.eval()
+                on_checkpoint(i, model, loss)
+                model.train()
+
+    return Checkpoints()
+
+
 def pretrain(domain, model_dir, data_paths, out, steps: int = 2000, lr: float = 3e-3, budget: int | None = None,
-             seed: int = 0, threads: int = 1, log=print) -> PretrainResult:
+             seed: int = 0, threads: int = 1, log=print, every: int | None = None, on_checkpoint=None) -> PretrainResult:
     """Fine-tune the model in `model_dir` on the records in `data_paths` with TRL's `SFTTrainer`
-    (completion-only loss on the actions); save the model and tokenizer to `out`."""
+    (completion-only loss on the actions); save the model and tokenizer to `out`. With `every` and
+    `on_checkpoint`, `on_checkpoint(update, model, loss)` runs every `every` updates and after the last
+    (the learning curve's evaluations; `loss`: the mean loss since the previous call)."""
     import tempfile
     import time
 
@@ -215,7 +242,8 @@ def pretrain(domain, model_dir, data_paths, out, steps: int = 2000, lr: float = 
     with tempfile.TemporaryDirectory() as scratch:  # the trainer's output_dir: nothing is saved there
         trainer = SFTTrainer(model=model, args=sft_config(scratch, steps, lr, seed, log_every=1),
                              train_dataset=completion_dataset(data), processing_class=tok,
-                             callbacks=[_log_callback(log, steps)])
+                             callbacks=[_log_callback(log, steps)]
+                             + ([_checkpoint_callback(every, steps, on_checkpoint)] if every and on_checkpoint else []))
         trainer.remove_callback(PrinterCallback)  # our callback logs instead (to `log`, not stdout)
         t0 = time.perf_counter()
         trainer.train()

@@ -39,8 +39,8 @@ class StudentSettings:
     tasks: tuple = field(default=())  # empty: every task
 
     def agents(self) -> tuple:
-        """(agent, seeds) of the teacher trajectories."""
-        return (("oracle-ask", self.ask_seeds), ("oracle", self.oracle_seeds))
+        """(agent, seeds) of the teacher trajectories (an agent with no seeds left out)."""
+        return tuple((a, seeds) for a, seeds in (("oracle-ask", self.ask_seeds), ("oracle", self.oracle_seeds)) if seeds)
 
 
 def training_personas(domain, split: str) -> tuple:
@@ -78,7 +78,7 @@ def build_student(domain, out, s: StudentSettings = StudentSettings(), log=print
     t_data = time.perf_counter() - t0
     base = init_tiny(domain, out / "init", seed=s.seed, vocab_size=s.vocab, hidden=s.hidden, layers=s.layers)
     r = pretrain(domain, base, files, out, steps=s.steps, lr=s.lr, seed=s.seed, log=log)
-    info = {"settings": asdict(s), "scene_seeds": sorted({*s.ask_seeds, *s.oracle_seeds}), "spec_hash": domain.spec_hash, "data": [str(f.relative_to(out)) for f in files],
+    info = {"settings": asdict(s), "split": s.split, "teachers": [a for a, _ in s.agents()], "scene_seeds": sorted({*s.ask_seeds, *s.oracle_seeds}), "spec_hash": domain.spec_hash, "data": [str(f.relative_to(out)) for f in files],
             "pretrain": asdict(r), "seconds": {"data": round(t_data, 1), "pretrain": round(r.seconds, 1),
                                                "total": round(time.perf_counter() - t0, 1)},
             "machine": f"{platform.machine()}, torch 1 thread"}

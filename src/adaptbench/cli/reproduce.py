@@ -1,0 +1,62 @@
+"""`adapt train reproduce --split S [--scale smoke|session] --out DIR`: the whole study, resumable
+(`training.pipeline`)."""
+
+from __future__ import annotations
+
+import sys
+
+
+def _cmd_reproduce(args) -> int:
+    from pathlib import Path
+
+    from ..compiler import load_domain
+    from ..training.pipeline import SCALES, StageFailed, run, scale_dict, stages
+
+    def log(msg: str) -> None:
+        print(msg, file=sys.stderr, flush=True)
+
+    domain = load_domain(args.spec)
+    unseen = {str(k) for k in domain.unseen}
+    if args.split not in unseen:
+        print(f"adapt: unknown split '{args.split}' (choose from: {', '.join(sorted(unseen)) or 'none'})",
+              file=sys.stderr)
+        return 2
+    scale = SCALES[args.scale]
+    plan = stages(domain, args.split, scale, Path(args.out), args.spec)
+    if args.estimate:
+        from ..training.pipeline import estimate_lines
+
+        print("\n".join(estimate_lines(plan, Path(args.out))))
+        return 0
+    try:
+        rec = run(plan, Path(args.out), log, settings={"split": args.split, "scale": scale_dict(scale)})
+    except StageFailed as exc:
+        log(f"adapt: {exc}; fix it and run the same command again (the stages done are kept)")
+        return 1
+    except KeyboardInterrupt:
+        log("\nadapt: interrupted; run the same command again to resume at the first stage not done")
+        return 130
+    print(f"reproduce ({args.scale}, split {args.split}) done in {rec['seconds_now']:.0f} s: Table 1/2 in "
+          f"{args.out}/report/tables.md, figures in {args.out}/report/")
+    return 0
+
+
+def add_reproduce(train_sub) -> None:
+    """Add `reproduce` to the `train` group."""
+    from .episode import add_spec_option
+
+    p = train_sub.add_parser("reproduce", help="the whole study in one resumable command: teacher data, base "
+                                                "student, pairs, DPO and ablations, evaluation, tables and figures",
+                             description="Runs teacher data -> base student (oracle behaviour cloning) -> "
+                                         "Reflection-DPO pairs -> dpo, no-reflection, sft, star-gate -> evaluation "
+                                         "rollouts -> Table 1/2 and the temporal and questions figures, each stage "
+                                         "into OUT/<stage>/ with a done-marker. Prints its time estimate first; run "
+                                         "again after a kill to resume at the first stage not done.")
+    add_spec_option(p)
+    p.add_argument("--split", required=True, help="split id of spec/splits.yaml (trained without its unseen personas)")
+    p.add_argument("--scale", choices=["smoke", "session"], default="smoke",
+                   help="smoke: a tiny model, one persona and task, a few steps (a few minutes; CI runs it); "
+                        "session: what a 2-core CPU session can do (see the estimate)")
+    p.add_argument("--out", required=True, help="output directory (one folder per stage)")
+    p.add_argument("--estimate", action="store_true", help="print the estimate and exit")
+    p.set_defaults(func=_cmd_reproduce)

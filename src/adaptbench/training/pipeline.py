@@ -1,0 +1,289 @@
+"""`adapt train reproduce`: the whole Reflection-DPO study as one resumable pipeline of stages.
+
+    adapt train reproduce --split 0 --scale smoke --out runs/reproduce
+
+This module only orders stages. Each stage is a typed config (`Stage`: its name, the `adapt` commands it
+runs, the units its cost is counted in) and an artefact directory OUT/<stage>/; when every command of a
+stage has succeeded, OUT/<stage>/done.json (the done-marker) records its commands and seconds. A run starts
+at the first stage whose marker is missing or records other commands (another scale or split), so after a
+kill at any point the same command goes on where it stopped: a killed stage is run again, and every
+command underneath resumes by itself (rollouts skip finished episodes, `adapt train data` keeps the steps
+written, trainers resume from their last checkpoint and a finished trainer is a no-op; only the base
+student's pretraining, minutes at these scales, starts over).
+
+Stages, in order (S: the split; the evaluation personas are the split's unseen ones plus as many of its
+training personas, scene seeds 0-3 or fewer; everything else trains on scene seeds from 100 up):
+
+1. base: teacher data (the privileged `oracle`, no questions, on the split's training personas) and the
+   base student behaviour-cloned on it (`adapt model student --ask-seeds none`: OUT/base/student.json).
+2. pairs: Reflection-DPO's pairs from the base (`adapt train data`).
+3. dpo, no-reflection, sft: the method and its ablations from the base (`adapt train ...`).
+4. star-gate: the base's own rollouts on training personas, then `adapt train star-gate` on them.
+5. eval: rollouts of the base as planner, never-ask-llm and always-ask-llm, and of each trained model
+   (OUT/eval/*.jsonl).
+6. report: `adapt eval` (Table 1/2: OUT/report/tables.md; the oracle's ceiling row is computed by
+   `adapt eval` itself), the temporal figure and the questions figure (OUT/report/*.png).
+
+Before it starts, the pipeline prints its estimate: each stage's seconds from a cost model (`COSTS`:
+seconds per unit of work, measured at smoke scale on 2 shared CPU cores, one torch thread) times its
+units. The stages run as child processes of `python -m adaptbench.cli` in the pipeline's process group; on
+Linux a child dies with the pipeline (a SIGKILL of the pipeline alone leaves no stage running).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import time
+from dataclasses import asdict, dataclass, replace
+from pathlib import Path
+
+from ..harness.seeds import EVAL_SEEDS
+
+METHODS = ("dpo", "no-reflection", "sft")
+BASE_AGENTS = ("planner", "never-ask-llm", "always-ask-llm")
+
+
+@dataclass(frozen=True)
+class Scale:
+    """The sizes of one pipeline run."""
+
+    name: str
+    hidden: int  # base student: hidden size
+    layers: int
+    base_updates: int  # behaviour-cloning updates, one oracle episode each
+    teacher_seeds: str  # scene seeds of the oracle's episodes
+    train_personas: int  # training personas the pairs and STaR-GATE rollouts use (0: all of the split's)
+    tasks: tuple  # empty: every task
+    pair_seeds: str  # scene seeds of `adapt train data` and the STaR-GATE rollouts
+    max_steps: int  # step budget of every rollout (pairs, STaR-GATE, evaluation)
+    train_steps: int  # optimizer steps of each trainer
+    eval_personas: int  # unseen (and as many seen) personas evaluated (0: all)
+    eval_seeds: str
+    batch: int = 8
+
+
+SCALES = {
+    "smoke": Scale("smoke", hidden=32, layers=1, base_updates=8, teacher_seeds="100", train_personas=1,
+                   tasks=("toast_coffee",), pair_seeds="100", max_steps=6, train_steps=2, eval_personas=1,
+                   eval_seeds="0", batch=4),
+    "session": Scale("session", hidden=128, layers=4, base_updates=800, teacher_seeds="100-103", train_personas=0,
+                     tasks=(), pair_seeds="100", max_steps=50, train_steps=150, eval_personas=0, eval_seeds="0-1",
+                     batch=16),
+}
+
+# Seconds per unit of work, per base-student size. Units: `start` a child process's start (importing torch and
+# transformers), `trainer_start` a trainer's fixed cost (TRL, the dataset, saving the adapter and the merged
+# model), `teacher_episode` an oracle episode, `update` a behaviour-cloning update of the base (one whole
+# episode), `pair_step` a step of `adapt train data` (rollout, teacher, reflection, scoring), `train_step` an
+# optimizer step of a trainer (LoRA, batch 4), `episode_step` a model's step in a batched rollout.
+# h32-l1: measured by `--scale smoke` on 2 CPU cores shared with other jobs (load ~4; 2026-11-27).
+# h128-l4: the shipped student's figures (student.json: 800 updates in 3,709 s; docs/training.md's session run:
+# 2,942 pair steps in 9 min on 2 workers, DPO 6.1 s/update, ~40 s per 2,560 evaluation steps, all at 20-step
+# prompts), doubled where the cost grows with the prompt (50 steps: prompts ~2.5x longer).
+COSTS = {
+    "h32-l1": {"start": 10.0, "trainer_start": 25.0, "teacher_episode": 0.3, "update": 1.5, "pair_step": 0.8,
+               "train_step": 2.0, "episode_step": 0.35},
+    "h128-l4": {"start": 10.0, "trainer_start": 25.0, "teacher_episode": 0.3, "update": 4.6, "pair_step": 0.75,
+                "train_step": 12.0, "episode_step": 0.03},
+}
+
+
+@dataclass(frozen=True)
+class Stage:
+    """One stage: its name, the `adapt` commands it runs in order (argument lists), and its cost in units
+    of `COSTS` (unit -> count)."""
+
+    name: str
+    commands: tuple
+    units: tuple  # ((unit, count), ...)
+    costs: str = "h32-l1"  # the row of COSTS
+
+    def marker(self, out: Path) -> Path:
+        """The done-marker of this stage."""
+        return out / self.name / "done.json"
+
+    def done(self, out: Path) -> bool:
+        """Whether a finished run of exactly these commands left its marker."""
+        try:
+            return json.loads(self.marker(out).read_text()).get("commands") == [list(c) for c in self.commands]
+        except (OSError, ValueError):
+            return False
+
+
+def cost_row(s: Scale) -> str:
+    """The row of `COSTS` for the scale's base size: its own, else the measured size nearest in hidden x layers."""
+    own = f"h{s.hidden}-l{s.layers}"
+    if own in COSTS:
+        return own
+
+    def size(key):
+        h, _, l_ = key[1:].partition("-l")
+        return int(h) ** 2 * int(l_)
+
+    return min(COSTS, key=lambda k: abs(size(k) - s.hidden ** 2 * s.layers))
+
+
+def _personas(domain, split: str, s: Scale) -> tuple:
+    from .student import training_personas
+
+    train = training_personas(domain, split)
+    unseen = tuple({str(k): v for k, v in domain.unseen.items()}[str(split)])
+    n = s.eval_personas or len(unseen)
+    evaluate = unseen[:n] + train[:n]
+    return (train[:s.train_personas] if s.train_personas else train), evaluate
+
+
+def _count(text: str) -> int:
+    from ..harness.rollout import parse_seeds
+
+    return len(parse_seeds(text))
+
+
+def stages(domain, split: str, s: Scale, out: Path, spec=None) -> list:
+    """The stages of the pipeline, in order."""
+    from .student import training_personas
+
+    out = Path(out)
+    trainp, evalp = _personas(domain, split, s)
+    tasks = s.tasks or tuple(domain.task)
+    ntask, spec_args = len(tasks), (["--spec", str(spec)] if spec else [])
+    tasks_arg = ",".join(tasks) if s.tasks else "all"
+    common = [*spec_args, "--tasks", tasks_arg, "--max-steps", str(s.max_steps)]
+    base, row = str(out / "base"), cost_row(s)
+    n_teacher = len(training_personas(domain, split)) * ntask * _count(s.teacher_seeds)
+    n_pairs = len(trainp) * ntask * _count(s.pair_seeds)
+    n_eval = len(evalp) * ntask * _count(s.eval_seeds)
+    result = [Stage("base", (("model", "student", *spec_args, "--out", base, "--split", split, "--ask-seeds", "none",
+                              "--oracle-seeds", s.teacher_seeds, "--tasks", tasks_arg, "--hidden", str(s.hidden),
+                              "--layers", str(s.layers), "--steps", str(s.base_updates), "--workers", "1",
+                              "--quiet"),),
+                    (("start", 1), ("teacher_episode", n_teacher), ("update", s.base_updates))),
+              Stage("pairs", (("train", "data", *common, "--split", split, "--student", base, "--out",
+                               str(out / "pairs"), "--personas", ",".join(trainp), "--seeds", s.pair_seeds,
+                               "--batch", str(s.batch), "--workers", "1"),),
+                    (("start", 1), ("pair_step", n_pairs * s.max_steps)))]
+    for m in METHODS:
+        result.append(Stage(m, (("train", m, "--data", str(out / "pairs"), "--model", base, "--out", str(out / m),
+                                 "--max-steps", str(s.train_steps), "--threads", "1"),),
+                            (("start", 1), ("trainer_start", 1), ("train_step", s.train_steps))))
+    rollouts = str(out / "star-gate" / "rollouts.jsonl")
+    result.append(Stage("star-gate", (("rollout", "--agent", "planner", "--model", base, *common, "--personas",
+                                       ",".join(trainp), "--seeds", s.pair_seeds, "--out", rollouts,
+                                       "--batch", str(s.batch), "--quiet"),
+                                      ("train", "star-gate", *spec_args, "--data", rollouts, "--model", base,
+                                       "--out", str(out / "star-gate" / "model"), "--max-steps", str(s.train_steps),
+                                       "--threads", "1")),
+                        (("start", 2), ("trainer_start", 1), ("episode_step", n_pairs * s.max_steps), ("train_step", s.train_steps))))
+    ev = out / "eval"
+    where = [*common, "--personas", ",".join(evalp), "--seeds", s.eval_seeds, "--batch", str(s.batch), "--quiet"]
+    cmds = [("rollout", "--agent", ",".join(BASE_AGENTS), "--model", base, *where, "--out", str(ev / "base.jsonl"))]
+    for m, model in [*((m, out / m / "merged") for m in METHODS), ("star-gate", out / "star-gate" / "model" / "merged")]:
+        cmds.append(("rollout", "--agent", "planner", "--model", str(model), *where, "--out", str(ev / f"{m}.jsonl")))
+    result.append(Stage("eval", tuple(cmds), (("start", len(cmds)),
+                                               ("episode_step", (len(BASE_AGENTS) + 4) * n_eval * s.max_steps))))
+    rep = out / "report"
+    files = [str(ev / f"{m}.jsonl") for m in ("base", *METHODS)]
+    star = f"star-gate@{split}={ev / 'star-gate.jsonl'}"  # its rollouts' records name no split
+    result.append(Stage("report", (("eval", *files, "--method", star, *spec_args, "--markdown", str(rep / "tables.md"),
+                                    "--plot-temporal", str(rep / "temporal.png"),
+                                    "--plot-questions", str(rep / "questions.png")),),
+                        (("start", 1),)))
+    return [replace(st, costs=row) for st in result]
+
+
+def stage_seconds(stage: Stage) -> float:
+    """The cost model's seconds for one stage."""
+    return sum(COSTS[stage.costs][u] * n for u, n in stage.units)
+
+
+def estimate_lines(all_stages: list, out: Path) -> list:
+    """The estimate printed before a run: one line per stage (done, or its seconds) and the total left."""
+    lines, left = [], 0.0
+    for st in all_stages:
+        if st.done(out):
+            lines.append(f"  {st.name:<14} done")
+            continue
+        sec = stage_seconds(st)
+        left += sec
+        lines.append(f"  {st.name:<14} ~{_duration(sec)}")
+    return [f"estimate: ~{_duration(left)} for the stages left (cost model of training.pipeline, 2 CPU cores):",
+            *lines]
+
+
+def _duration(sec: float) -> str:
+    if sec < 120:
+        return f"{sec:.0f} s"
+    if sec < 7200:
+        return f"{sec / 60:.0f} min"
+    return f"{sec / 3600:.1f} h"
+
+
+def run_stage(stage: Stage, out: Path, log=print, runner=None) -> float:
+    """Run a stage's commands (a failing one raises StageFailed) and write its done-marker; seconds."""
+    (out / stage.name).mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
+    for cmd in stage.commands:
+        argv = [sys.executable, "-m", "adaptbench.cli", *cmd] if runner is None else runner(cmd)
+        log(f"$ adapt {' '.join(cmd)}")
+        rc = subprocess.run(argv, env={**os.environ, "PYTHONUNBUFFERED": "1"}, preexec_fn=_die_with_parent).returncode
+        if rc != 0:
+            raise StageFailed(stage.name, cmd, rc)
+    sec = time.perf_counter() - t0
+    marker = stage.marker(out)
+    tmp = marker.with_suffix(".tmp")
+    tmp.write_text(json.dumps({"stage": stage.name, "commands": [list(c) for c in stage.commands],
+                               "seconds": round(sec, 1), "estimate": round(stage_seconds(stage), 1)}, indent=1) + "\n")
+    tmp.replace(marker)  # atomic: a kill leaves the marker whole or absent
+    return sec
+
+
+def _die_with_parent() -> None:
+    """In the child, before exec: on Linux, be killed when the pipeline process dies (SIGKILL included), so a
+    rerun never meets an orphaned stage still writing its files."""
+    try:
+        import ctypes
+        import signal
+
+        ctypes.CDLL(None).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        pass
+
+
+class StageFailed(RuntimeError):
+    """A stage's command exited with an error."""
+
+    def __init__(self, stage: str, cmd, rc: int):
+        super().__init__(f"stage {stage}: `adapt {' '.join(cmd)}` exited with {rc}")
+        self.stage, self.rc = stage, rc
+
+
+def run(all_stages: list, out: Path, log=print, runner=None, settings: dict | None = None) -> dict:
+    """Print the estimate, run every stage not done, in order; OUT/pipeline.json records the stages'
+    seconds against their estimates. Returns that record."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    for line in estimate_lines(all_stages, out):
+        log(line)
+    record = {"settings": settings or {}, "stages": []}
+    t0 = time.perf_counter()
+    for st in all_stages:
+        if st.done(out):
+            log(f"stage {st.name}: done (skipped)")
+        else:
+            log(f"stage {st.name}: running (~{_duration(stage_seconds(st))})")
+            run_stage(st, out, log, runner)
+        record["stages"].append(json.loads(st.marker(out).read_text()))
+    record["seconds_now"] = round(time.perf_counter() - t0, 1)
+    (out / "pipeline.json").write_text(json.dumps(record, indent=1) + "\n")
+    return record
+
+
+def scale_dict(s: Scale) -> dict:
+    """The scale as JSON."""
+    return asdict(s)
+
+
+__all__ = ["COSTS", "EVAL_SEEDS", "SCALES", "Scale", "Stage", "StageFailed", "estimate_lines", "run", "stages"]

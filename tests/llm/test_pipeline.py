@@ -1,0 +1,166 @@
+"""`adapt train reproduce` (training.pipeline): stages in order with done-markers, the estimate printed
+before anything runs, resumption after SIGKILL at a stage boundary and in the middle of a stage (fast, on
+stand-in stages); the whole smoke pipeline end to end as its own process, killed and resumed (slow)."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import pytest
+
+from .conftest import SKIP_MODELS
+
+ROOT = Path(__file__).resolve().parents[2]
+
+# A stand-in pipeline: stage i appends a line to log.txt, sleeps `nap` seconds (mid-stage), then writes its
+# output; its done-marker follows. Run as its own process so that a test can SIGKILL it.
+DRIVER = textwrap.dedent("""
+    import sys
+    from pathlib import Path
+    from adaptbench.training.pipeline import Stage, run
+
+    out, nap = Path(sys.argv[1]), sys.argv[2]
+    script = ("import sys, time, pathlib; o = pathlib.Path(sys.argv[1]); "
+              "(o / 'log.txt').open('a').write(sys.argv[2] + chr(10)); time.sleep(float(sys.argv[3])); "
+              "(o / sys.argv[2] / 'out.txt').write_text('made')")
+    stages = [Stage(n, (("step", n),), (("start", 1),)) for n in ("a", "b", "c")]
+    run(stages, out, log=lambda m: print(m, flush=True),
+        runner=lambda cmd: [sys.executable, "-c", script, str(out), cmd[1], nap if cmd[1] == "b" else "0"])
+    print("all done", flush=True)
+""")
+
+
+def _driver(tmp_path, nap: str):
+    env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
+    (tmp_path / "driver.py").write_text(DRIVER)
+    return subprocess.Popen([sys.executable, str(tmp_path / "driver.py"), str(tmp_path / "out"), nap], env=env,
+                            stdout=subprocess.PIPE, text=True, start_new_session=True)
+
+
+def _kill_when(proc, cond, timeout: float = 60) -> None:
+    t0 = time.time()
+    while not cond():
+        assert proc.poll() is None and time.time() - t0 < timeout, "the driver ended before the kill point"
+        time.sleep(0.05)
+    os.killpg(proc.pid, signal.SIGKILL)  # the pipeline and the stage it runs
+    proc.wait()
+
+
+def test_the_estimate_comes_first_and_every_stage_runs_once_in_order(tmp_path):
+    p = _driver(tmp_path, "0")
+    text, _ = p.communicate(timeout=120)
+    lines = text.splitlines()
+    assert p.returncode == 0 and lines[0].startswith("estimate: ~") and lines[-1] == "all done"
+    assert (tmp_path / "out" / "log.txt").read_text().split() == ["a", "b", "c"]
+    for n in "abc":
+        marker = json.loads((tmp_path / "out" / n / "done.json").read_text())
+        assert marker["commands"] == [["step", n]] and marker["seconds"] >= 0
+    rerun = _driver(tmp_path, "0")
+    text, _ = rerun.communicate(timeout=120)
+    assert "stage a: done (skipped)" in text and "stage c: done (skipped)" in text
+    assert (tmp_path / "out" / "log.txt").read_text().split() == ["a", "b", "c"]  # nothing ran again
+
+
+def test_a_sigkill_mid_stage_resumes_at_that_stage(tmp_path):
+    out = tmp_path / "out"
+    p = _driver(tmp_path, "30")
+    _kill_when(p, lambda: (out / "log.txt").is_file() and "b" in (out / "log.txt").read_text().split())
+    assert (out / "a" / "done.json").is_file() and not (out / "b" / "done.json").exists()
+    q = _driver(tmp_path, "0")
+    text, _ = q.communicate(timeout=120)
+    assert q.returncode == 0 and "stage a: done (skipped)" in text
+    assert (out / "log.txt").read_text().split() == ["a", "b", "b", "c"]  # b again (killed), a not
+    assert all((out / n / "done.json").is_file() for n in "abc")
+
+
+def test_a_sigkill_at_a_stage_boundary_resumes_at_the_next_stage(tmp_path):
+    out = tmp_path / "out"
+    p = _driver(tmp_path, "30")
+    _kill_when(p, lambda: (out / "a" / "done.json").is_file())  # a finished, b not yet done
+    q = _driver(tmp_path, "0")
+    q.communicate(timeout=120)
+    log = (out / "log.txt").read_text().split()
+    assert log.count("a") == 1 and log[-1] == "c" and q.returncode == 0
+
+
+def test_a_marker_of_other_commands_does_not_count_as_done(tmp_path):
+    from adaptbench.training.pipeline import Stage
+
+    st = Stage("a", (("x", "1"),), ())
+    (tmp_path / "a").mkdir()
+    st.marker(tmp_path).write_text(json.dumps({"commands": [["x", "2"]]}))
+    assert not st.done(tmp_path)
+    st.marker(tmp_path).write_text(json.dumps({"commands": [["x", "1"]]}))
+    assert st.done(tmp_path)
+
+
+def test_the_plan_keeps_training_off_the_evaluation_seeds_and_personas(domain, tmp_path):
+    from adaptbench.harness.rollout import parse_seeds
+    from adaptbench.training.pipeline import SCALES, estimate_lines, stages
+
+    for scale in SCALES.values():
+        plan = stages(domain, "0", scale, tmp_path)
+        assert [s.name for s in plan] == ["base", "pairs", "dpo", "no-reflection", "sft", "star-gate", "eval",
+                                          "report"]
+        for st in plan[:6]:
+            for cmd in st.commands:
+                for flag in ("--seeds", "--oracle-seeds"):
+                    if flag in cmd:
+                        assert min(parse_seeds(cmd[cmd.index(flag) + 1])) >= 100
+                if "--personas" in cmd:
+                    assert set(cmd[cmd.index("--personas") + 1].split(",")).isdisjoint(domain.unseen[0])
+        assert estimate_lines(plan, tmp_path)[0].startswith("estimate: ~")
+
+
+def test_an_unknown_split_is_one_line(capsys, tmp_path):
+    from adaptbench.cli import main
+
+    assert main(["train", "reproduce", "--split", "9", "--out", str(tmp_path / "r")]) == 2
+    assert "unknown split '9'" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+@SKIP_MODELS
+def test_the_smoke_pipeline_end_to_end_killed_mid_stage_and_resumed(tmp_path):
+    """The real thing at smoke scale (a few minutes): killed with SIGKILL while a stage runs, then run again
+    to the end: tables and both figures."""
+    out = tmp_path / "rep"
+    env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
+    cmd = [sys.executable, "-m", "adaptbench.cli", "train", "reproduce", "--split", "0", "--scale", "smoke",
+           "--out", str(out)]
+    p = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                         start_new_session=True)
+    first = p.stdout.readline()
+    assert first.startswith("estimate: ~"), first
+    _kill_when(p, lambda: (out / "pairs" / "pairs.jsonl").is_file(), timeout=600)  # in the pairs stage
+    assert (out / "base" / "done.json").is_file() and not (out / "pairs" / "done.json").exists()
+    r = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=1200)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert r.stderr.splitlines()[0].startswith("estimate: ~") and "stage base: done (skipped)" in r.stderr
+    tables = (out / "report" / "tables.md").read_text()
+    for method in ("planner", "reflection-dpo", "no-reflection", "no-dpo", "star-gate", "always-ask-llm"):
+        assert method in tables
+    assert (out / "report" / "temporal.png").stat().st_size > 0 and (out / "report" / "questions.png").is_file()
+    info = json.loads((out / "base" / "student.json").read_text())
+    assert info["settings"]["split"] == "0" and info["settings"]["ask_seeds"] == []
+
+
+def test_a_sigkill_of_the_pipeline_alone_ends_its_stage_too(tmp_path):
+    out = tmp_path / "out"
+    p = _driver(tmp_path, "30")
+    t0 = time.time()
+    while not ((out / "log.txt").is_file() and "b" in (out / "log.txt").read_text().split()):
+        assert time.time() - t0 < 60
+        time.sleep(0.05)
+    p.kill()  # the pipeline's process only, not its group
+    p.wait()
+    time.sleep(1)
+    ps = subprocess.run(["ps", "-o", "stat=", "-g", str(p.pid)], capture_output=True, text=True).stdout.split()
+    assert [s for s in ps if not s.startswith("Z")] == [], ps  # the stage b child died with it (a zombie at most)
