@@ -99,15 +99,9 @@ def evaluate(domain, model_dir: Path, jobs: list, out: Path, s: CurveSettings) -
 
 
 def _records(path: Path) -> list:
-    out = []
-    for line in Path(path).read_text().splitlines():
-        try:
-            r = json.loads(line)
-        except json.JSONDecodeError:
-            continue
-        if isinstance(r, dict) and "steps" in r and "error" not in r:
-            out.append(r)
-    return out
+    from .pretrain import read_records
+
+    return read_records([path])
 
 
 def oracle_data(domain, s: CurveSettings, out: Path, progress: bool = False) -> Path:
