@@ -74,3 +74,10 @@ def test_grpo_smoke_changes_adapter_and_logs_rewards(tiny, tmp_path, capsys):
     assert all("rewards/tool_format_reward/mean" in r for r in logged)
     held = [r for r in rows if r.get("event") == "held_out"]
     assert [r["when"] for r in held] == ["before", "after"]
+    before = (out / "log.jsonl").read_bytes(), (out / "adapter" / "adapter_model.safetensors").read_bytes()
+    args = ["train", "grpo", "--model", str(tiny), "--spec", str(SMALL), "--out", str(out), "--steps", "2",
+            "--generations", "4", "--max-completion", "16", "--max-tool-calls", "2", "--holdout", "1",
+            "--eval-episodes", "1", "--lr", "1e-2"]
+    assert main(args) == 0  # a rerun of the finished run trains nothing and changes nothing
+    assert "already holds this finished run" in capsys.readouterr().err
+    assert ((out / "log.jsonl").read_bytes(), (out / "adapter" / "adapter_model.safetensors").read_bytes()) == before

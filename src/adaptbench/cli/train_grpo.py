@@ -69,6 +69,9 @@ def _cmd_grpo(args) -> int:
     except ValueError as exc:  # TRL's and transformers' refusals of a model or setting: one line, not a traceback
         print(f"adapt: train grpo: {' '.join(str(exc).split())[:400]}", file=sys.stderr)
         return 1
+    if r.already:
+        print(f"adapt: {args.out} already holds this finished run ({Path(args.out) / 'result.json'}); nothing to do",
+              file=sys.stderr)
     fmt = lambda x: "n/a" if x is None else f"{x:.3f}"  # noqa: E731
     print(f"held-out reward (verifiers' satisfaction rate): before {fmt(r.before)}, after {fmt(r.after)}; "
           f"{len(r.rewards)} training steps logged to {Path(args.out) / 'log.jsonl'}; adapter in "

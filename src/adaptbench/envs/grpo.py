@@ -54,6 +54,7 @@ class GrpoResult:
     after: float | None = None
     rewards: list = field(default_factory=list)
     out: str = ""
+    already: bool = False  # a finished run found in `out`: nothing was trained
 
 
 def split_personas(domain, holdout: int) -> tuple:
@@ -166,8 +167,27 @@ def _last_checkpoint(out: Path):
     return str(ckpts[-1]) if ckpts else None
 
 
+DONE = "result.json"  # written last: a run with it (and the same settings) is finished
+
+
+def finished(s: GrpoSettings) -> GrpoResult | None:
+    """The result of a finished run of these settings in `s.out` (its result.json), else None."""
+    path = Path(s.out) / DONE
+    try:
+        data = json.loads(path.read_text()) if path.is_file() else None
+    except (OSError, ValueError):
+        return None
+    if not isinstance(data, dict) or data.get("settings") != vars_of(s):
+        return None
+    return GrpoResult(data.get("before"), data.get("after"), list(data.get("rewards") or ()), str(s.out), True)
+
+
 def train_grpo(s: GrpoSettings) -> GrpoResult:
-    """Train, measuring the held-out reward before and after; the adapter and tokenizer go to `s.out`."""
+    """Train, measuring the held-out reward before and after; the adapter and tokenizer go to `s.out`, then
+    result.json (the run's done-marker). A finished run of the same settings is not trained again."""
+    done = finished(s)
+    if done is not None:
+        return done
     trainer, log, (train_p, held_p) = build_trainer(s)
     out = Path(s.out)
     log.write({"event": "start", "train_personas": train_p, "held_out_personas": held_p, "settings": vars_of(s)})
@@ -180,6 +200,10 @@ def train_grpo(s: GrpoSettings) -> GrpoResult:
     result.rewards = [h["reward"] for h in trainer.state.log_history if "reward" in h and "eval_reward" not in h]
     trainer.save_model(str(out / "adapter"))
     trainer.processing_class.save_pretrained(str(out / "adapter"))
+    tmp = out / (DONE + ".tmp")
+    tmp.write_text(json.dumps({"settings": vars_of(s), "before": result.before, "after": result.after,
+                               "rewards": result.rewards}, indent=1) + "\n")
+    tmp.replace(out / DONE)
     return result
 
 
