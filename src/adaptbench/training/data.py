@@ -6,8 +6,9 @@ where both act the same (same parsed action) are skipped (and, only when asked, 
 row: `skip_after_failures`, this project's option, not the paper's); otherwise the student reflects (or the
 topic proposer asks), the user answers, the row's prompt x is fitted to `max_length` keeping every question
 and answer (`rows.fit_prompt`), P(a^t|x), P(a^t|x,q,answer), P(a^s|x) are scored on exactly that x through
-the backend's `score`, and the decision rule (`decide`) picks the chosen completion. The rejected answer (the student's own) keeps the
-ids the student generated (`rejected_token_ids`, `training.ids`). Rows go to `pairs.jsonl` as they are made.
+the backend's `score`, and the decision rule (`decide`) picks the chosen completion. The rejected answer (the
+student's own) keeps the ids the student generated (`rejected_token_ids`, `training.ids`). Rows go to
+`pairs.jsonl` as they are made.
 
 With `interactions=2` each (persona, task, seed) runs twice in the same scene: the second interaction's
 student prompt carries the prior-knowledge summary of the first (`prior.prior_summary`: what the user
