@@ -280,6 +280,7 @@ def _seeds_or_none(text: str, parse) -> tuple:
 
 
 def _add_student_command(msub) -> None:
+    from ..harness.seeds import seeds_text
     from ..training.student import StudentSettings
     from .episode import add_spec_option
 
@@ -292,11 +293,11 @@ def _add_student_command(msub) -> None:
     add_spec_option(q)
     q.add_argument("--out", required=True, help="directory for the model (data in OUT/data, OUT/student.json)")
     q.add_argument("--split", default=d.split, help=f"split whose unseen personas are left out (default {d.split})")
-    q.add_argument("--ask-seeds", default=_seeds_text(d.ask_seeds),
-                   help=f"scene seeds of the oracle-ask episodes (default {_seeds_text(d.ask_seeds)}; `none`: no "
+    q.add_argument("--ask-seeds", default=seeds_text(d.ask_seeds),
+                   help=f"scene seeds of the oracle-ask episodes (default {seeds_text(d.ask_seeds)}; `none`: no "
                         "questions, the base student of the oracle's episodes alone)")
-    q.add_argument("--oracle-seeds", default=_seeds_text(d.oracle_seeds),
-                   help=f"scene seeds of the oracle episodes (default {_seeds_text(d.oracle_seeds)})")
+    q.add_argument("--oracle-seeds", default=seeds_text(d.oracle_seeds),
+                   help=f"scene seeds of the oracle episodes (default {seeds_text(d.oracle_seeds)})")
     q.add_argument("--allow-eval-seeds", action="store_true",
                    help="train on the evaluation scene seeds 0-3 anyway (refused by default: `adapt eval` flags them)")
     q.add_argument("--tasks", default="all", help="'all' (default) or comma-separated task ids")
@@ -308,13 +309,6 @@ def _add_student_command(msub) -> None:
     q.add_argument("--workers", type=int, default=d.workers, help=f"rollout processes (default {d.workers})")
     q.add_argument("--quiet", action="store_true")
     q.set_defaults(func=_cmd_model_student)
-
-
-def _seeds_text(seeds: tuple) -> str:
-    """(1, 2, 3) -> '1-3' (a contiguous run), else comma-separated."""
-    if seeds and list(seeds) == list(range(seeds[0], seeds[-1] + 1)) and len(seeds) > 1:
-        return f"{seeds[0]}-{seeds[-1]}"
-    return ",".join(map(str, seeds))
 
 
 def _gguf_run(fn, *a) -> int:
