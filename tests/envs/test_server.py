@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import http.client
 import json
-import socket
 import subprocess
 import sys
 import threading
@@ -15,14 +14,10 @@ import time
 
 import pytest
 
+from ..procs import free_port
+
 pytest.importorskip("starlette", reason="the envs extra is not installed: pip install -e '.[envs]'")
 pytest.importorskip("uvicorn", reason="the envs extra is not installed: pip install -e '.[envs]'")
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 @pytest.fixture(scope="module")
@@ -32,7 +27,7 @@ def server(domain):
 
     from adaptbench.envs.server import Limits, create_app, uvicorn_config
 
-    port = _free_port()
+    port = free_port()
     limits = Limits(max_sessions=80, timeout=30.0)
     app = create_app(domain, limits)
     srv = uvicorn.Server(uvicorn_config(app, "127.0.0.1", port, limits, "error"))

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import importlib.util
 import os
-import socket
 import subprocess
 import sys
 import time
@@ -17,6 +16,7 @@ from pathlib import Path
 
 import pytest
 
+from ..procs import free_port, stop
 from .conftest import SKIP_MODELS
 from .test_openai import _request
 
@@ -28,12 +28,6 @@ pytestmark = [SKIP_MODELS, pytest.mark.skipif(
     bool(SERVING_MISSING) or not CLI.exists(),
     reason=f"transformers serve needs the serving extra (missing {', '.join(SERVING_MISSING) or 'the transformers CLI'}): "
            'pip install "transformers[serving]"')]
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def _wait(url: str, proc, seconds: float = 90.0) -> None:
@@ -52,7 +46,7 @@ def _wait(url: str, proc, seconds: float = 90.0) -> None:
 @pytest.fixture(scope="module")
 def served(tiny, tmp_path_factory):
     """(url, model name) of `transformers serve` on the tiny model; the server is stopped afterwards."""
-    port = _free_port()
+    port = free_port()
     log = tmp_path_factory.mktemp("serve") / "serve.log"
     env = {**os.environ, "HF_HUB_OFFLINE": "1", "TRANSFORMERS_VERBOSITY": "error"}
     with open(log, "wb") as out:
@@ -64,12 +58,7 @@ def served(tiny, tmp_path_factory):
     except (RuntimeError, TimeoutError) as exc:
         pytest.fail(f"{exc}\n{log.read_text()[-2000:]}")
     finally:
-        proc.terminate()
-        try:
-            proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
+        stop(proc)
 
 
 def _backend(served, tiny):

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import json
 import os
-import socket
 import subprocess
 import time
 import urllib.request
@@ -22,6 +21,7 @@ import pytest
 
 from adaptbench.cli import main
 
+from ..procs import free_port, stop
 from .conftest import SKIP_MODELS
 from .test_openai import _request
 
@@ -39,12 +39,6 @@ def server_command(python: str, model: str, port: int) -> list:
     return [python, "-m", "vllm.entrypoints.openai.api_server", "--model", model, "--host", "127.0.0.1",
             "--port", str(port), "--dtype", "float32", "--gpu-memory-utilization", "0.3",
             "--structured-outputs-config.backend", "guidance"]
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def _wait(url: str, proc, log: Path, seconds: float = 600.0) -> float:
@@ -69,7 +63,7 @@ def vllm(domain, tmp_path_factory):
     from adaptbench.llm.tiny import init_tiny
 
     model = str(init_tiny(domain, tmp_path_factory.mktemp("tiny128"), hidden=128))
-    port, log = _free_port(), tmp_path_factory.mktemp("vllm") / "vllm.log"
+    port, log = free_port(), tmp_path_factory.mktemp("vllm") / "vllm.log"
     env = {**os.environ, "HF_HUB_OFFLINE": "1", "VLLM_NO_USAGE_STATS": "1", "DO_NOT_TRACK": "1"}
     with open(log, "wb") as out:
         proc = subprocess.Popen(server_command(str(Path(VENV) / "bin" / "python"), model, port),
@@ -79,11 +73,7 @@ def vllm(domain, tmp_path_factory):
         print(f"\nvLLM answered after {_wait(url, proc, log):.0f} s")
         yield url, model
     finally:
-        proc.terminate()
-        try:
-            proc.wait(30)
-        except subprocess.TimeoutExpired:
-            proc.kill()
+        stop(proc, 30)
 
 
 @pytest.fixture(scope="module")
