@@ -104,3 +104,88 @@ def _weights(path):
     from safetensors.torch import load_file
 
     return load_file(str(path / "model.safetensors"))
+
+
+# ------------------------------------------------------------------ resumable pretraining
+class Killed(Exception):
+    """Stands for a kill in the middle of training."""
+
+
+def _kill_at(update: int):
+    def on_checkpoint(i, model, loss):
+        if i == update:
+            raise Killed
+
+    return on_checkpoint
+
+
+def _micro(domain, tmp_path):
+    """A 32x1 model and the first 4 steps of an oracle episode (toast and coffee) to train it on."""
+    from adaptbench.llm.tiny import init_tiny
+
+    rec = _oracle_record(domain, "toast_coffee", 100)
+    data = tmp_path / "oracle.jsonl"
+    data.write_text(json.dumps({**rec, "steps": rec["steps"][:4]}) + "\n")
+    return init_tiny(domain, tmp_path / "init", hidden=32, layers=1), data
+
+
+def test_a_killed_pretraining_resumes_to_the_weights_of_an_uninterrupted_run(domain, tmp_path):
+    import pytest
+
+    from adaptbench.training.pretrain import last_checkpoint, pretrain
+
+    init, data = _micro(domain, tmp_path)
+    quiet = lambda m: None  # noqa: E731
+
+    def train(name, **kw):
+        return pretrain(domain, init, [data], tmp_path / name, steps=4, lr=1e-2, log=quiet,
+                        checkpoints=tmp_path / f"{name}-ck", save_every=2, **kw)
+
+    whole = train("whole")
+    assert whole.resumed_from == 0 and last_checkpoint(tmp_path / "whole-ck")[0] == 4
+    with pytest.raises(Killed):  # after update 2's checkpoint, before update 4's
+        train("cut", every=2, on_checkpoint=_kill_at(4))
+    assert last_checkpoint(tmp_path / "cut-ck")[0] == 2 and not (tmp_path / "cut").exists()
+    said = []
+    resumed = pretrain(domain, init, [data], tmp_path / "cut", steps=4, lr=1e-2, log=said.append,
+                       checkpoints=tmp_path / "cut-ck", save_every=2)
+    assert any("resuming from update 2 of 4" in m for m in said) and resumed.resumed_from == 2
+    a, b = _weights(tmp_path / "whole"), _weights(tmp_path / "cut")
+    assert all((a[k] == b[k]).all() for k in a)  # bit-identical: optimizer, scheduler, RNG and data order resumed
+    assert (resumed.first_loss, resumed.last_loss) == (whole.first_loss, whole.last_loss)  # the whole loss history
+    again = []
+    assert pretrain(domain, init, [data], tmp_path / "cut", steps=4, lr=1e-2, log=again.append,
+                    checkpoints=tmp_path / "cut-ck") == resumed and "already trained" in again[0]
+    with pytest.raises(ValueError, match="another pretraining run .*steps"):
+        pretrain(domain, init, [data], tmp_path / "cut", steps=6, lr=1e-2, log=quiet, checkpoints=tmp_path / "cut-ck")
+
+
+def test_a_killed_curve_keeps_its_points_and_evaluates_no_checkpoint_twice(domain, tmp_path, monkeypatch):
+    import pytest
+
+    from adaptbench.training import curve
+
+    _, data = _micro(domain, tmp_path)
+    evaluated = []
+
+    def fake_evaluate(domain_, model_dir, jobs, out, s):
+        update = int(out.stem.removeprefix("eval-"))
+        if update == 4 and not evaluated.count(4):
+            evaluated.append(4)
+            raise Killed  # a kill in the middle of update 4's evaluation
+        evaluated.append(update)
+        return {"episodes": 1, "dishes": update, "dishes_of": 8, "satisfaction": update / 8}
+
+    monkeypatch.setattr(curve, "evaluate", fake_evaluate)
+    s = curve.CurveSettings(seeds=(100,), sizes=((32, 1),), steps=6, every=2, lr=1e-2)
+    with pytest.raises(Killed):
+        curve.train_size(domain, data, (32, 1), s, tmp_path / "c", [], log=lambda m: None)
+    here = tmp_path / "c" / "h32-l1"
+    before = curve.read_points(here / "points.jsonl")
+    assert list(before) == [2] and (here / "trainer" / "checkpoint-2" / "trainer_state.json").is_file()
+    entry = curve.train_size(domain, data, (32, 1), s, tmp_path / "c", [], log=lambda m: None)
+    assert evaluated == [2, 4, 4, 6]  # update 2 not again; the killed one once more
+    assert [p["update"] for p in entry["points"]] == [2, 4, 6] and entry["points"][0] == before[2]
+    assert all(p["loss"] is not None for p in entry["points"]) and entry["pretrain"]["resumed_from"] == 2
+    done = curve.train_size(domain, data, (32, 1), s, tmp_path / "c", [], log=lambda m: None)
+    assert evaluated == [2, 4, 4, 6] and done["points"] == entry["points"]  # a finished size: nothing again

@@ -222,9 +222,11 @@ def _cmd_model_pretrain(args) -> int:
     args.model = resolve_model(args.model)
     if not Path(args.model).is_dir():
         _fail(f"--model {args.model}: not a directory")
+    if args.save_every < 1:
+        _fail(f"--save-every must be at least 1, not {args.save_every}")
     try:
         info = pretrain(load_domain(args.spec), args.model, paths, args.out, steps=args.steps, lr=args.lr,
-                        budget=args.budget, seed=args.seed,
+                        budget=args.budget, seed=args.seed, checkpoints=args.checkpoints, save_every=args.save_every,
                         log=(lambda m: None) if args.quiet else (lambda m: print(m, file=sys.stderr)))
     except ImportError as exc:
         _fail(f"{exc}; install the train extra: {install_hint('train')}")
@@ -238,7 +240,7 @@ def _cmd_model_pretrain(args) -> int:
 
 
 def _cmd_model_student(args) -> int:
-    from ..compiler import load_domain
+    from ..compiler import SpecError, load_domain
     from ..harness.rollout import parse_seeds
     from ..training.student import StudentSettings, build_student, training_personas
     from .runs import _names
@@ -249,11 +251,12 @@ def _cmd_model_student(args) -> int:
         training_personas(domain, args.split)
         s = StudentSettings(split=args.split, tasks=tasks, ask_seeds=_seeds_or_none(args.ask_seeds, parse_seeds),
                             oracle_seeds=_seeds_or_none(args.oracle_seeds, parse_seeds), hidden=args.hidden,
-                            layers=args.layers, steps=args.steps, lr=args.lr, seed=args.seed, workers=args.workers)
+                            layers=args.layers, steps=args.steps, lr=args.lr, seed=args.seed, workers=args.workers,
+                            save_every=args.save_every)
     except ValueError as exc:
         _fail(str(exc))
-    if args.steps < 1 or args.workers < 1:
-        _fail("--steps and --workers must be at least 1")
+    if min(args.steps, args.workers, args.save_every) < 1:
+        _fail("--steps, --workers and --save-every must be at least 1")
     if not s.ask_seeds and not s.oracle_seeds:
         _fail("--ask-seeds and --oracle-seeds are both none: give one of them scene seeds (e.g. --oracle-seeds 100)")
     from ..harness.seeds import overlap_message
@@ -266,6 +269,10 @@ def _cmd_model_student(args) -> int:
         info = build_student(domain, args.out, s, log=lambda m: print(m, file=sys.stderr), progress=not args.quiet)
     except ImportError as exc:
         _fail(f"{exc}; install the train extra: {install_hint('train')}")
+    except SpecError:
+        raise  # a ValueError too: the one handler reports its diagnostics
+    except ValueError as exc:  # e.g. OUT/trainer holds another run's checkpoints
+        _fail(str(exc))
     r, sec = info["pretrain"], info["seconds"]
     print(f"student saved to {args.out}: {r['examples']} steps of {r['episodes']} teacher episodes, {r['steps']} "
           f"updates (loss {r['first_loss']:.2f} -> {r['last_loss']:.2f}); data {sec['data']:.0f} s, training "
@@ -307,6 +314,9 @@ def _add_student_command(msub) -> None:
     q.add_argument("--lr", type=float, default=d.lr, help=f"default {d.lr}")
     q.add_argument("--seed", type=int, default=d.seed, help="model initialisation and data order (default 0)")
     q.add_argument("--workers", type=int, default=d.workers, help=f"rollout processes (default {d.workers})")
+    q.add_argument("--save-every", type=int, default=d.save_every,
+                   help=f"save a resumable training checkpoint to OUT/trainer every N updates (default {d.save_every}); "
+                        "run the same command again after a kill to resume there")
     q.add_argument("--quiet", action="store_true")
     q.set_defaults(func=_cmd_model_student)
 
@@ -390,6 +400,11 @@ def add_commands(sub) -> None:
     q.add_argument("--budget", type=int, help="prompt token budget (oldest steps dropped first; default none: "
                    "whole episodes, as `adapt rollout` prompts the tiny model by default)")
     q.add_argument("--seed", type=int, default=0)
+    q.add_argument("--checkpoints", help="directory for resumable training checkpoints (model, optimizer, "
+                                         "scheduler, RNG, step); run the same command again after a kill to "
+                                         "resume from the newest one (default: none, a kill starts over)")
+    q.add_argument("--save-every", type=int, default=200,
+                   help="with --checkpoints: save one every N updates (default 200)")
     q.add_argument("--quiet", action="store_true")
     q.set_defaults(func=_cmd_model_pretrain)
     _add_student_command(msub)

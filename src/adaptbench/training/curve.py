@@ -14,8 +14,12 @@ questions), evaluated at checkpoints on the split's unseen personas:
    dishes completed (task components made, over all episodes) and the mean satisfaction rate, each with its
    standard error; OUT/curve.png (the plots extra) draws both against updates.
 
-Checkpoint evaluations already written are not run again (their rollout file holds every episode), but the
-training of a size restarts from its initialisation: a size is cheap at the scales this runs on.
+Resumable after a kill at any point: the teacher rollouts skip the episodes written; each size's training
+saves the trainer's state (model, optimizer, scheduler, RNG, step) to OUT/<size>/trainer/checkpoint-N at
+every evaluation checkpoint (`training.pretrain`'s checkpoints) and resumes from the newest complete one, to
+the same weights as an uninterrupted run; each checkpoint's point (update, loss since the previous one,
+scores) is appended to OUT/<size>/points.jsonl once its evaluation is complete, and a point already there is
+never evaluated again (a killed evaluation resumes its rollout file). A finished size is not trained again.
 """
 
 from __future__ import annotations
@@ -113,38 +117,67 @@ def oracle_data(domain, s: CurveSettings, out: Path, progress: bool = False) -> 
 
 
 def train_size(domain, data: Path, size: tuple, s: CurveSettings, out: Path, jobs: list, log=print) -> dict:
-    """Train one size with evaluations at checkpoints; its curve entry."""
+    """Train one size with evaluations at checkpoints (resuming its training and keeping the points
+    already in OUT/<size>/points.jsonl); its curve entry."""
     from ..llm.tiny import init_tiny
     from .pretrain import pretrain
 
     here = out / s.size_name(size)
     base = init_tiny(domain, here / "init", seed=s.seed, vocab_size=s.vocab, hidden=size[0], layers=size[1])
-    points: list = []
-    tok_dir = base
+    points = read_points(here / "points.jsonl")
 
     def checkpoint(update: int, model, loss) -> None:
         from transformers import AutoTokenizer
 
+        if update in points:
+            return  # evaluated before a kill
         t0 = time.perf_counter()
         ck = here / f"update-{update}"
         model.save_pretrained(ck)
-        AutoTokenizer.from_pretrained(tok_dir).save_pretrained(ck)
+        AutoTokenizer.from_pretrained(base).save_pretrained(ck)
         sc = evaluate(domain, ck, jobs, here / f"eval-{update}.jsonl", s)
-        points.append({"update": update, "loss": loss, **sc, "eval_seconds": round(time.perf_counter() - t0, 1)})
+        add_point(here / "points.jsonl", points, {"update": update, "loss": loss, **sc,
+                                                  "eval_seconds": round(time.perf_counter() - t0, 1)})
         log(f"{s.size_name(size)} update {update}: loss {loss if loss is None else round(loss, 3)}, dishes "
             f"{sc['dishes']}/{sc['dishes_of']}, satisfaction {sc['satisfaction'] or 0:.1%} "
-            f"({points[-1]['eval_seconds']:.0f} s)")
+            f"({points[update]['eval_seconds']:.0f} s)")
 
-    if s.initial:
-        points.append({"update": 0, "loss": None, **evaluate(domain, base, jobs, here / "eval-0.jsonl", s)})
+    if s.initial and 0 not in points:
+        add_point(here / "points.jsonl", points,
+                  {"update": 0, "loss": None, **evaluate(domain, base, jobs, here / "eval-0.jsonl", s)})
     r = pretrain(domain, base, [data], here / "final", steps=s.steps, lr=s.lr, seed=s.seed, threads=s.threads,
-                 log=log, every=s.every, on_checkpoint=checkpoint)
+                 log=log, every=s.every, on_checkpoint=checkpoint, checkpoints=here / "trainer")
     entry = {"size": s.size_name(size), "hidden": size[0], "layers": size[1], "parameters": _parameters(base),
-             "pretrain": asdict(r), "points": points}
+             "pretrain": asdict(r), "points": [points[u] for u in sorted(points) if u <= s.steps]}
     provenance = {"settings": asdict(s), "split": s.split, "scene_seeds": sorted(s.seeds), "teacher": "oracle",
                   "spec_hash": domain.spec_hash, "curve": entry}
     (here / "final" / "student.json").write_text(json.dumps(provenance, indent=1) + "\n")
     return entry
+
+
+def read_points(path: Path) -> dict:
+    """update -> point of a size's points.jsonl (a torn last line from a kill is ignored)."""
+    points = {}
+    if path.is_file():
+        for line in path.read_text().splitlines():
+            try:
+                p = json.loads(line)
+            except json.JSONDecodeError:
+                continue
+            points[p["update"]] = p
+    return points
+
+
+def add_point(path: Path, points: dict, point: dict) -> None:
+    """Append one evaluated checkpoint to points.jsonl (flushed to disk) and to `points`."""
+    import os
+
+    torn = path.is_file() and path.stat().st_size and not path.read_bytes().endswith(b"\n")
+    with path.open("a") as f:
+        f.write(("\n" if torn else "") + json.dumps(point) + "\n")
+        f.flush()
+        os.fsync(f.fileno())
+    points[point["update"]] = point
 
 
 def _parameters(model_dir) -> int:

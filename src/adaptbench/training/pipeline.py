@@ -8,8 +8,8 @@ stage has succeeded, OUT/<stage>/done.json (the done-marker) records its command
 at the first stage whose marker is missing or records other commands (another scale or split), so after a
 kill at any point the same command goes on where it stopped: a killed stage is run again, and every
 command underneath resumes by itself (rollouts skip finished episodes, `adapt train data` keeps the steps
-written, trainers resume from their last checkpoint and a finished trainer is a no-op; only the base
-student's pretraining, minutes at these scales, starts over).
+written, trainers, the base student's pretraining included, resume from their last checkpoint and a
+finished trainer is a no-op).
 
 Stages, in order (S: the split; the evaluation personas are the split's unseen ones plus as many of its
 training personas, scene seeds 0-3 or fewer; everything else trains on scene seeds from 100 up):

@@ -12,12 +12,20 @@ The sequences go to `SFTTrainer` as a tokenized dataset (`input_ids` + `completi
 action and EOS token): TRL builds the labels from the mask (completion-only loss), never truncates
 (`max_length=None`) and trains one sequence per update (AdamW, warm-up then linear decay, gradients
 clipped at 1), on the CPU by default.
+
+With a checkpoint directory, training is resumable: the trainer's own checkpoints (`save_strategy="steps"`:
+model, optimizer, scheduler, RNG states and the trainer state with its loss history) are written to
+DIR/checkpoint-N every `save_every` updates and after the last (the two newest kept), and DIR/pretrain.json
+records the run's settings. Run again with the same settings, training resumes from the newest complete
+checkpoint (one whose trainer_state.json, written last, is there) with `trainer.train(resume_from_checkpoint=)`;
+once a run has finished, pretrain.json holds its result and running it again is a no-op. Other settings on
+the same directory are refused (one line), never mixed.
 """
 
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 IGNORE = -100  # label of a token the loss skips
@@ -126,25 +134,30 @@ def completion_dataset(data):
 
 
 def sft_config(out, steps: int, lr: float, seed: int = 0, batch: int = 1, warmup: int = 50, log_every: int = 10,
-               device: str = "cpu", **extra):
+               device: str = "cpu", save_every: int | None = None, **extra):
     """`SFTConfig` for training on already tokenized sequences with completion-only loss: no truncation,
-    no checkpoints, no reports, no gradient checkpointing; float32 on a CPU (TRL defaults to bf16 and
-    gradient checkpointing, both slow there); AdamW without weight decay, warm-up then linear decay."""
+    no reports, no gradient checkpointing; float32 on a CPU (TRL defaults to bf16 and gradient
+    checkpointing, both slow there); AdamW without weight decay, warm-up then linear decay. No checkpoints,
+    or with `save_every` the trainer's full checkpoints in `out` every that many updates and after the
+    last, the two newest kept."""
     from trl import SFTConfig
 
     cpu = device == "cpu"
+    save = ({"save_strategy": "steps", "save_steps": save_every, "save_total_limit": 2} if save_every
+            else {"save_strategy": "no"})
     return SFTConfig(output_dir=str(out), max_steps=steps, learning_rate=lr, seed=seed, data_seed=seed,
                      per_device_train_batch_size=batch, gradient_accumulation_steps=1, max_length=None,
                      completion_only_loss=True, lr_scheduler_type="linear", warmup_steps=min(warmup, steps),
                      weight_decay=0.0, max_grad_norm=1.0, activation_checkpointing=False, bf16=False, fp16=False,
-                     use_cpu=cpu, report_to="none", save_strategy="no", logging_steps=log_every,
-                     disable_tqdm=True, dataloader_num_workers=0, **extra)
+                     use_cpu=cpu, report_to="none", logging_steps=log_every, disable_tqdm=True,
+                     dataloader_num_workers=0, **save, **extra)
 
 
 @dataclass(frozen=True)
 class PretrainResult:
     """What `pretrain` did: labelled steps, episodes used and skipped, sequences, tokens, updates, the
-    mean loss of the first and of the last (up to) 50 updates, and seconds spent training."""
+    mean loss of the first and of the last (up to) 50 updates, seconds spent training in this call, and
+    the update it resumed from (0: from the initialisation)."""
 
     examples: int
     episodes: int
@@ -155,10 +168,69 @@ class PretrainResult:
     first_loss: float
     last_loss: float
     seconds: float
+    resumed_from: int = 0
 
 
 def _losses(history) -> list:
     return [h["loss"] for h in history if "loss" in h and "train_loss" not in h]
+
+
+# ------------------------------------------------------------------ checkpoints
+RUN_FILE = "pretrain.json"  # in the checkpoint directory: the run's settings, and its result once finished
+
+
+def _sha256(path) -> str:
+    import hashlib
+
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def run_settings(model_dir, data_paths, steps: int, lr: float, budget, seed: int) -> dict:
+    """What makes two pretraining runs the same run: the starting model (its weights' hash), the data
+    (each file's hash), updates, learning rate, token budget and seed."""
+    weights = sorted(Path(model_dir).glob("*.safetensors"))
+    return {"model": [_sha256(w) for w in weights], "data": [_sha256(p) for p in data_paths], "steps": steps,
+            "lr": lr, "budget": budget, "seed": seed}
+
+
+def last_checkpoint(folder) -> tuple:
+    """(update, path) of the newest complete trainer checkpoint in `folder` (DIR/checkpoint-N holding its
+    trainer_state.json, which the trainer writes last); (0, None) when there is none."""
+    found = []
+    for d in Path(folder).glob("checkpoint-*"):
+        n = d.name.removeprefix("checkpoint-")
+        if n.isdigit() and (d / "trainer_state.json").is_file():
+            found.append((int(n), d))
+    return max(found) if found else (0, None)
+
+
+def _open_run(folder: Path, settings: dict) -> dict:
+    """The run record of a checkpoint directory: created with `settings` when absent; ValueError (one line)
+    when it holds another run's."""
+    path = folder / RUN_FILE
+    if path.is_file():
+        rec = json.loads(path.read_text())
+        if rec.get("settings") != settings:
+            diff = [k for k in settings if rec.get("settings", {}).get(k) != settings[k]]
+            raise ValueError(f"{folder} holds the checkpoints of another pretraining run (different "
+                             f"{', '.join(diff) or 'settings'}): remove it, or train into another directory")
+        return rec
+    if last_checkpoint(folder)[1] is not None:
+        raise ValueError(f"{folder} holds checkpoints but no {RUN_FILE}: remove it, or train into another directory")
+    folder.mkdir(parents=True, exist_ok=True)
+    rec = {"settings": settings}
+    _write_json(path, rec)
+    return rec
+
+
+def _write_json(path: Path, obj) -> None:
+    tmp = path.with_suffix(".tmp")
+    tmp.write_text(json.dumps(obj, indent=1) + "\n")
+    tmp.replace(path)  # atomic: a kill leaves the old file or the new one
 
 
 def _log_callback(log, steps: int):
@@ -171,7 +243,7 @@ def _log_callback(log, steps: int):
 
     class Log(TrainerCallback):
         def on_train_begin(self, args, state, control, **kw):
-            self.t0, self.window = time.perf_counter(), []
+            self.t0, self.window, self.start = time.perf_counter(), [], None
 
         def on_log(self, args, state, control, logs=None, **kw):
             if logs and "loss" in logs:
@@ -179,10 +251,12 @@ def _log_callback(log, steps: int):
 
         def on_step_end(self, args, state, control, **kw):
             i = state.global_step
+            if self.start is None:
+                self.start = i - 1  # the update resumed from (0 on a fresh run)
             if i % every == 0 and self.window:
                 spent = time.perf_counter() - self.t0
                 log(f"update {i}/{steps} loss {sum(self.window) / len(self.window):.3f} "
-                    f"({spent:.0f} s, ~{spent / i * (steps - i):.0f} s left)")
+                    f"({spent:.0f} s, ~{spent / (i - self.start) * (steps - i):.0f} s left)")
                 self.window = []
 
     return Log()
@@ -214,18 +288,30 @@ def _checkpoint_callback(every: int, steps: int, on_checkpoint):
 
 
 def pretrain(domain, model_dir, data_paths, out, steps: int = 2000, lr: float = 3e-3, budget: int | None = None,
-             seed: int = 0, threads: int = 1, log=print, every: int | None = None, on_checkpoint=None) -> PretrainResult:
+             seed: int = 0, threads: int = 1, log=print, every: int | None = None, on_checkpoint=None,
+             checkpoints=None, save_every: int | None = None) -> PretrainResult:
     """Fine-tune the model in `model_dir` on the records in `data_paths` with TRL's `SFTTrainer`
     (completion-only loss on the actions); save the model and tokenizer to `out`. With `every` and
     `on_checkpoint`, `on_checkpoint(update, model, loss)` runs every `every` updates and after the last
-    (the learning curve's evaluations; `loss`: the mean loss since the previous call)."""
-    import tempfile
+    (the learning curve's evaluations; `loss`: the mean loss since the previous call). With `checkpoints`
+    (a directory), the trainer's state is saved there every `save_every` updates (default: `every`, else
+    200) and a rerun with the same settings resumes from the newest complete checkpoint, or returns the
+    finished run's result without training (see the module docstring); ValueError when the directory
+    holds another run's checkpoints."""
     import time
 
     import torch
     from transformers import AutoModelForCausalLM, AutoTokenizer, PrinterCallback, set_seed
     from trl import SFTTrainer
 
+    out = Path(out)
+    run = None
+    if checkpoints is not None:
+        checkpoints = Path(checkpoints)
+        run = _open_run(checkpoints, run_settings(model_dir, data_paths, steps, lr, budget, seed))
+        if "result" in run and (out / "config.json").is_file():
+            log(f"already trained: {steps} updates (checkpoints in {checkpoints}); nothing to do")
+            return PretrainResult(**run["result"])
     torch.set_num_threads(threads)
     tok = AutoTokenizer.from_pretrained(model_dir)
     records = read_records(data_paths)
@@ -239,21 +325,37 @@ def pretrain(domain, model_dir, data_paths, out, steps: int = 2000, lr: float = 
         f"{tokens} tokens")
     set_seed(seed)
     model = AutoModelForCausalLM.from_pretrained(model_dir, dtype=torch.float32)
-    with tempfile.TemporaryDirectory() as scratch:  # the trainer's output_dir: nothing is saved there
-        trainer = SFTTrainer(model=model, args=sft_config(scratch, steps, lr, seed, log_every=1),
-                             train_dataset=completion_dataset(data), processing_class=tok,
+    resumed, start = last_checkpoint(checkpoints) if checkpoints is not None else (0, None)
+    if start is not None:
+        log(f"resuming from update {resumed} of {steps} ({start})")
+    with _trainer_dir(checkpoints) as folder:
+        args = sft_config(folder, steps, lr, seed, log_every=1,
+                          save_every=(save_every or every or 200) if checkpoints is not None else None)
+        trainer = SFTTrainer(model=model, args=args, train_dataset=completion_dataset(data), processing_class=tok,
                              callbacks=[_log_callback(log, steps)]
                              + ([_checkpoint_callback(every, steps, on_checkpoint)] if every and on_checkpoint else []))
         trainer.remove_callback(PrinterCallback)  # our callback logs instead (to `log`, not stdout)
         t0 = time.perf_counter()
-        trainer.train()
+        trainer.train(resume_from_checkpoint=str(start) if start is not None else None)
         seconds = time.perf_counter() - t0
-    out = Path(out)
     model.eval()
     out.mkdir(parents=True, exist_ok=True)
     trainer.model.save_pretrained(out)
     tok.save_pretrained(out)
     losses = _losses(trainer.state.log_history)
     head, tail = losses[:50], losses[-50:]
-    return PretrainResult(targets, len(records) - skipped, skipped, len(data), tokens, steps,
-                          sum(head) / max(1, len(head)), sum(tail) / max(1, len(tail)), seconds)
+    result = PretrainResult(targets, len(records) - skipped, skipped, len(data), tokens, steps,
+                            sum(head) / max(1, len(head)), sum(tail) / max(1, len(tail)), seconds, resumed)
+    if run is not None:
+        _write_json(checkpoints / RUN_FILE, {**run, "result": asdict(result)})
+    return result
+
+
+def _trainer_dir(checkpoints):
+    """The trainer's output directory: the checkpoint directory, or a temporary one (nothing saved there)."""
+    import contextlib
+    import tempfile
+
+    if checkpoints is None:
+        return tempfile.TemporaryDirectory()
+    return contextlib.nullcontext(str(checkpoints))

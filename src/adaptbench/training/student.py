@@ -11,6 +11,10 @@
    Llama from `seed`).
 3. `training.pretrain.pretrain` (TRL `SFTTrainer`, completion-only loss on the actions, prompts rendered
    with the planner prompt) into OUT, with OUT/student.json saying how it was made.
+
+Resumable: run the same command again after a kill and the rollouts skip the episodes written, and the
+pretraining resumes from its newest checkpoint in OUT/trainer (saved every `save_every` updates); a
+finished build trains nothing again.
 """
 
 from __future__ import annotations
@@ -36,6 +40,7 @@ class StudentSettings:
     lr: float = 2e-3
     seed: int = 0  # model initialisation and data order
     workers: int = 2  # rollout processes
+    save_every: int = 200  # a resumable checkpoint of the training (OUT/trainer) every this many updates
     tasks: tuple = field(default=())  # empty: every task
 
     def agents(self) -> tuple:
@@ -77,7 +82,8 @@ def build_student(domain, out, s: StudentSettings = StudentSettings(), log=print
     files = teacher_data(domain, s, out, progress)
     t_data = time.perf_counter() - t0
     base = init_tiny(domain, out / "init", seed=s.seed, vocab_size=s.vocab, hidden=s.hidden, layers=s.layers)
-    r = pretrain(domain, base, files, out, steps=s.steps, lr=s.lr, seed=s.seed, log=log)
+    r = pretrain(domain, base, files, out, steps=s.steps, lr=s.lr, seed=s.seed, log=log, checkpoints=out / "trainer",
+                 save_every=s.save_every)
     info = {"settings": asdict(s), "split": s.split, "teachers": [a for a, _ in s.agents()], "scene_seeds": sorted({*s.ask_seeds, *s.oracle_seeds}), "spec_hash": domain.spec_hash, "data": [str(f.relative_to(out)) for f in files],
             "pretrain": asdict(r), "seconds": {"data": round(t_data, 1), "pretrain": round(r.seconds, 1),
                                                "total": round(time.perf_counter() - t0, 1)},
