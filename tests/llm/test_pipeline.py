@@ -164,3 +164,66 @@ def test_a_sigkill_of_the_pipeline_alone_ends_its_stage_too(tmp_path):
     time.sleep(1)
     ps = subprocess.run(["ps", "-o", "stat=", "-g", str(p.pid)], capture_output=True, text=True).stdout.split()
     assert [s for s in ps if not s.startswith("Z")] == [], ps  # the stage b child died with it (a zombie at most)
+
+
+def _base(tmp_path, split="0", seeds=(100,), name="base"):
+    """A stand-in trained base student: the files `--base` asks for and a student.json."""
+    d = tmp_path / name
+    d.mkdir()
+    for f in ("config.json", "tokenizer_config.json"):
+        (d / f).write_text("{}")
+    (d / "model.safetensors").write_bytes(b"weights of " + name.encode())
+    (d / "student.json").write_text(json.dumps({"split": split, "scene_seeds": list(seeds), "teacher": "oracle"}))
+    return d
+
+
+def test_a_given_base_replaces_the_base_stage_and_every_later_stage_uses_it(domain, tmp_path):
+    from adaptbench.training.pipeline import SCALES, check_base, run, stages
+
+    given = check_base(_base(tmp_path), "0")
+    assert given["base"] == str((tmp_path / "base").resolve()) and given["student"]["scene_seeds"] == [100]
+    out = tmp_path / "rep"
+    plan = stages(domain, "0", SCALES["smoke"], out, base=given)
+    assert plan[0].name == "base" and plan[0].commands == () and plan[0].given == given
+    uses = [c[c.index(f) + 1] for st in plan[1:] for c in st.commands for f in ("--student", "--model") if f in c]
+    assert given["base"] in uses and str(out / "base") not in uses  # pairs, trainers, star-gate, eval: the given base
+    said = []
+    run(plan[:1], out, log=said.append)
+    marker = json.loads((out / "base" / "done.json").read_text())
+    assert marker["given"] == given and plan[0].done(out) and any("given" in m for m in said)
+    other = stages(domain, "0", SCALES["smoke"], out, base=check_base(_base(tmp_path, name="other"), "0"))
+    assert not other[0].done(out) and not stages(domain, "0", SCALES["smoke"], out)[0].done(out)
+
+
+@pytest.mark.parametrize("split,seeds,says", [("1", (100,), "trained for split 1, not --split 0"),
+                                              ("0", (2, 100), "trained on scene seed(s) 2"),
+                                              (None, None, "no student.json")])
+def test_a_base_of_another_split_or_on_evaluation_seeds_is_one_line(split, seeds, says, capsys, tmp_path):
+    from adaptbench.cli import main
+
+    base = _base(tmp_path, split, seeds or ())
+    if split is None:
+        (base / "student.json").unlink()
+    assert main(["train", "reproduce", "--split", "0", "--base", str(base), "--out", str(tmp_path / "r")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert says in err and len(err.splitlines()) == 1 and err.startswith("adapt: --base ")
+    assert not (tmp_path / "r").exists()
+
+
+def test_the_estimate_with_a_given_base_trains_no_base(capsys, tmp_path):
+    from adaptbench.cli import main
+
+    assert main(["train", "reproduce", "--split", "0", "--base", str(_base(tmp_path)), "--out", str(tmp_path / "r"),
+                 "--scale", "session", "--estimate"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[1].split()[:2] == ["base", "~0"] and "given" in lines[1]
+
+
+def test_the_session_scale_is_the_measured_base_recipe(domain, tmp_path):
+    from adaptbench.training.pipeline import SCALES, stages
+
+    cmd = stages(domain, "0", SCALES["session"], tmp_path)[0].commands[0]
+    arg = {f: cmd[cmd.index(f) + 1] for f in ("--hidden", "--layers", "--steps", "--oracle-seeds", "--lr")}
+    assert arg == {"--hidden": "128", "--layers": "4", "--steps": "4000", "--oracle-seeds": "100-123", "--lr": "0.002"}
+    units = dict(stages(domain, "0", SCALES["session"], tmp_path)[0].units)
+    assert units["teacher_episode"] == 12 * 8 * 24 == 2304

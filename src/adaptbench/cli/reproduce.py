@@ -1,4 +1,4 @@
-"""`adapt train reproduce --split S [--scale smoke|session] --out DIR`: the whole study, resumable
+"""`adapt train reproduce --split S [--scale smoke|session] [--base DIR] --out DIR`: the whole study, resumable
 (`training.pipeline`)."""
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ def _cmd_reproduce(args) -> int:
     from pathlib import Path
 
     from ..compiler import load_domain
-    from ..training.pipeline import SCALES, StageFailed, run, scale_dict, stages
+    from ..training.pipeline import SCALES, BadBase, StageFailed, check_base, run, scale_dict, stages
 
     def log(msg: str) -> None:
         print(msg, file=sys.stderr, flush=True)
@@ -22,14 +22,20 @@ def _cmd_reproduce(args) -> int:
               file=sys.stderr)
         return 2
     scale = SCALES[args.scale]
-    plan = stages(domain, args.split, scale, Path(args.out), args.spec)
+    try:
+        base = check_base(args.base, args.split) if args.base else None
+    except BadBase as exc:
+        print(f"adapt: {exc}", file=sys.stderr)
+        return 2
+    plan = stages(domain, args.split, scale, Path(args.out), args.spec, base)
     if args.estimate:
         from ..training.pipeline import estimate_lines
 
         print("\n".join(estimate_lines(plan, Path(args.out))))
         return 0
     try:
-        rec = run(plan, Path(args.out), log, settings={"split": args.split, "scale": scale_dict(scale)})
+        rec = run(plan, Path(args.out), log, settings={"split": args.split, "scale": scale_dict(scale),
+                                                       "base": base["base"] if base else None})
     except StageFailed as exc:
         log(f"adapt: {exc}; fix it and run the same command again (the stages done are kept)")
         return 1
@@ -56,7 +62,12 @@ def add_reproduce(train_sub) -> None:
     p.add_argument("--split", required=True, help="split id of spec/splits.yaml (trained without its unseen personas)")
     p.add_argument("--scale", choices=["smoke", "session"], default="smoke",
                    help="smoke: a tiny model, one persona and task, a few steps (a few minutes; CI runs it); "
-                        "session: what a 2-core CPU session can do (see the estimate)")
+                        "session: the measured base recipe (128x4, 4,000 updates at lr 2e-3 on the oracle's "
+                        "episodes of scene seeds 100-123) and everything after it at full size (see the estimate)")
+    p.add_argument("--base", metavar="DIR",
+                   help="an already trained base student (a model, its tokenizer and student.json, e.g. from adapt "
+                        "model student or adapt model curve's OUT/<size>/final) instead of the base stage: it must "
+                        "be trained for --split and on no evaluation scene seed (0-3)")
     p.add_argument("--out", required=True, help="output directory (one folder per stage)")
     p.add_argument("--estimate", action="store_true", help="print the estimate and exit")
     p.set_defaults(func=_cmd_reproduce)

@@ -16,6 +16,10 @@ training personas, scene seeds 0-3 or fewer; everything else trains on scene see
 
 1. base: teacher data (the privileged `oracle`, no questions, on the split's training personas) and the
    base student behaviour-cloned on it (`adapt model student --ask-seeds none`: OUT/base/student.json).
+   With `--base DIR`, an already trained base student instead (a model, its tokenizer and its
+   student.json, e.g. `adapt model student` or `adapt model curve`'s OUT/<size>/final): checked (trained for
+   this split, on no evaluation scene seed), recorded in OUT/base/done.json (path, weights' hash and its
+   student.json) and used by every later stage; nothing is trained.
 2. pairs: Reflection-DPO's pairs from the base (`adapt train data`).
 3. dpo, no-reflection, sft: the method and its ablations from the base (`adapt train ...`).
 4. star-gate: the base's own rollouts on training personas, then `adapt train star-gate` on them.
@@ -63,15 +67,18 @@ class Scale:
     eval_personas: int  # unseen (and as many seen) personas evaluated (0: all)
     eval_seeds: str
     batch: int = 8
+    base_lr: float = 2e-3  # behaviour-cloning learning rate
 
 
 SCALES = {
     "smoke": Scale("smoke", hidden=32, layers=1, base_updates=8, teacher_seeds="100", train_personas=1,
                    tasks=("toast_coffee",), pair_seeds="100", max_steps=6, train_steps=2, eval_personas=1,
                    eval_seeds="0", batch=4),
-    "session": Scale("session", hidden=128, layers=4, base_updates=800, teacher_seeds="100-103", train_personas=0,
+    # the base recipe measured by `adapt model curve` (docs/training.md): 128x4, 4,000 updates at lr 2e-3 on the
+    # oracle's episodes of scene seeds 100-123 (2,304 episodes for a split of 12 training personas)
+    "session": Scale("session", hidden=128, layers=4, base_updates=4000, teacher_seeds="100-123", train_personas=0,
                      tasks=(), pair_seeds="100", max_steps=50, train_steps=150, eval_personas=0, eval_seeds="0-1",
-                     batch=16),
+                     batch=16, base_lr=2e-3),
 }
 
 # Seconds per unit of work, per base-student size. Units: `start` a child process's start (importing torch and
@@ -80,13 +87,15 @@ SCALES = {
 # episode), `pair_step` a step of `adapt train data` (rollout, teacher, reflection, scoring), `train_step` an
 # optimizer step of a trainer (LoRA, batch 4), `episode_step` a model's step in a batched rollout.
 # h32-l1: measured by `--scale smoke` on 2 CPU cores shared with other jobs (load ~4; 2026-11-27).
-# h128-l4: the shipped student's figures (student.json: 800 updates in 3,709 s; docs/training.md's session run:
-# 2,942 pair steps in 9 min on 2 workers, DPO 6.1 s/update, ~40 s per 2,560 evaluation steps, all at 20-step
-# prompts), doubled where the cost grows with the prompt (50 steps: prompts ~2.5x longer).
+# h128-l4: an update 1.0 s (measured on an idle core, one torch thread, the oracle's whole episodes of ~3.2k
+# tokens; the learning curve's runs, 2026-11-27), a teacher episode 0.16 s (2,304 oracle episodes in ~6 min in one
+# process); the rest from the shipped student's figures (docs/training.md's session run: 2,942 pair steps in
+# 9 min on 2 workers, DPO 6.1 s/update, ~40 s per 2,560 evaluation steps, all at 20-step prompts), doubled where
+# the cost grows with the prompt (50 steps: prompts ~2.5x longer).
 COSTS = {
     "h32-l1": {"start": 10.0, "trainer_start": 25.0, "teacher_episode": 0.3, "update": 1.5, "pair_step": 0.8,
                "train_step": 2.0, "episode_step": 0.35},
-    "h128-l4": {"start": 10.0, "trainer_start": 25.0, "teacher_episode": 0.3, "update": 4.6, "pair_step": 0.75,
+    "h128-l4": {"start": 10.0, "trainer_start": 25.0, "teacher_episode": 0.16, "update": 1.0, "pair_step": 0.75,
                 "train_step": 12.0, "episode_step": 0.03},
 }
 
@@ -100,17 +109,19 @@ class Stage:
     commands: tuple
     units: tuple  # ((unit, count), ...)
     costs: str = "h32-l1"  # the row of COSTS
+    given: dict | None = None  # what a stage with nothing to run records instead (`--base`: the base student)
 
     def marker(self, out: Path) -> Path:
         """The done-marker of this stage."""
         return out / self.name / "done.json"
 
     def done(self, out: Path) -> bool:
-        """Whether a finished run of exactly these commands left its marker."""
+        """Whether a finished run of exactly these commands (and this given input) left its marker."""
         try:
-            return json.loads(self.marker(out).read_text()).get("commands") == [list(c) for c in self.commands]
+            rec = json.loads(self.marker(out).read_text())
         except (OSError, ValueError):
             return False
+        return rec.get("commands") == [list(c) for c in self.commands] and rec.get("given") == self.given
 
 
 def cost_row(s: Scale) -> str:
@@ -142,8 +153,57 @@ def _count(text: str) -> int:
     return len(parse_seeds(text))
 
 
-def stages(domain, split: str, s: Scale, out: Path, spec=None) -> list:
-    """The stages of the pipeline, in order."""
+class BadBase(ValueError):
+    """`--base DIR` is not a base student this pipeline may use."""
+
+
+def check_base(base, split: str) -> dict:
+    """What the pipeline records of an already trained base student (`--base DIR`): its path, the hash of its
+    weights and its student.json. BadBase (one line) when DIR lacks a model, tokenizer or student.json,
+    was trained for another split, or on an evaluation scene seed."""
+    import hashlib
+
+    from ..harness.seeds import eval_overlap, seeds_text
+
+    d = Path(base).resolve()
+    weights = sorted(d.glob("*.safetensors"))
+    missing = [n for n, ok in (("config.json", (d / "config.json").is_file()), ("model weights (*.safetensors)", weights),
+                               ("tokenizer_config.json", (d / "tokenizer_config.json").is_file()),
+                               ("student.json", (d / "student.json").is_file())) if not ok]
+    if missing:
+        raise BadBase(f"--base {base}: no {', '.join(missing)} there (give the directory of a trained base student: "
+                      "adapt model student --out DIR, or adapt model curve's OUT/<size>/final)")
+    try:
+        info = json.loads((d / "student.json").read_text())
+    except ValueError as exc:
+        raise BadBase(f"--base {base}: student.json is not JSON ({exc})") from None
+    trained = info.get("split", (info.get("settings") or {}).get("split"))
+    if str(trained) != str(split):
+        raise BadBase(f"--base {base}: trained for split {trained}, not --split {split} (its data may hold that "
+                      f"split's unseen personas): give a base trained with --split {split}")
+    seeds = info.get("scene_seeds", _settings_seeds(info.get("settings") or {}))
+    if not isinstance(seeds, list) or not seeds:
+        raise BadBase(f"--base {base}: student.json records no scene_seeds, so its training may meet the evaluation "
+                      "scenes: give a base built by adapt model student or adapt model curve")
+    bad = eval_overlap(seeds)
+    if bad:
+        raise BadBase(f"--base {base}: trained on scene seed(s) {seeds_text(bad)}, which the evaluation uses "
+                      f"({seeds_text(EVAL_SEEDS)}): give a base trained on seeds from 100 up")
+    sha = hashlib.sha256()
+    for w in weights:
+        sha.update(w.read_bytes())
+    return {"base": str(d), "weights_sha256": sha.hexdigest(), "student": info}
+
+
+def _settings_seeds(settings: dict) -> list | None:
+    """The scene seeds in a student.json's settings (one written before it recorded `scene_seeds`)."""
+    keys = [k for k in ("ask_seeds", "oracle_seeds", "seeds") if k in settings]
+    return sorted({int(x) for k in keys for x in settings[k]}) if keys else None
+
+
+def stages(domain, split: str, s: Scale, out: Path, spec=None, base: dict | None = None) -> list:
+    """The stages of the pipeline, in order. `base`: an already trained base student (`check_base`'s record)
+    that the base stage records instead of training one."""
     from .student import training_personas
 
     out = Path(out)
@@ -152,15 +212,17 @@ def stages(domain, split: str, s: Scale, out: Path, spec=None) -> list:
     ntask, spec_args = len(tasks), (["--spec", str(spec)] if spec else [])
     tasks_arg = ",".join(tasks) if s.tasks else "all"
     common = [*spec_args, "--tasks", tasks_arg, "--max-steps", str(s.max_steps)]
-    base, row = str(out / "base"), cost_row(s)
+    given, base, row = base, (base["base"] if base else str(out / "base")), cost_row(s)
     n_teacher = len(training_personas(domain, split)) * ntask * _count(s.teacher_seeds)
     n_pairs = len(trainp) * ntask * _count(s.pair_seeds)
     n_eval = len(evalp) * ntask * _count(s.eval_seeds)
-    result = [Stage("base", (("model", "student", *spec_args, "--out", base, "--split", split, "--ask-seeds", "none",
-                              "--oracle-seeds", s.teacher_seeds, "--tasks", tasks_arg, "--hidden", str(s.hidden),
-                              "--layers", str(s.layers), "--steps", str(s.base_updates), "--workers", "1",
-                              "--quiet"),),
-                    (("start", 1), ("teacher_episode", n_teacher), ("update", s.base_updates))),
+    first = (Stage("base", (), (), given=given) if given else
+             Stage("base", (("model", "student", *spec_args, "--out", base, "--split", split, "--ask-seeds", "none",
+                             "--oracle-seeds", s.teacher_seeds, "--tasks", tasks_arg, "--hidden", str(s.hidden),
+                             "--layers", str(s.layers), "--steps", str(s.base_updates), "--lr", str(s.base_lr),
+                             "--workers", "1", "--quiet"),),
+                   (("start", 1), ("teacher_episode", n_teacher), ("update", s.base_updates))))
+    result = [first,
               Stage("pairs", (("train", "data", *common, "--split", split, "--student", base, "--out",
                                str(out / "pairs"), "--personas", ",".join(trainp), "--seeds", s.pair_seeds,
                                "--batch", str(s.batch), "--workers", "1"),),
@@ -208,7 +270,7 @@ def estimate_lines(all_stages: list, out: Path) -> list:
             continue
         sec = stage_seconds(st)
         left += sec
-        lines.append(f"  {st.name:<14} ~{_duration(sec)}")
+        lines.append(f"  {st.name:<14} ~{_duration(sec)}" + (f" (given: {st.given['base']})" if st.given else ""))
     return [f"estimate: ~{_duration(left)} for the stages left (cost model of training.pipeline, 2 CPU cores):",
             *lines]
 
@@ -235,7 +297,8 @@ def run_stage(stage: Stage, out: Path, log=print, runner=None) -> float:
     marker = stage.marker(out)
     tmp = marker.with_suffix(".tmp")
     tmp.write_text(json.dumps({"stage": stage.name, "commands": [list(c) for c in stage.commands],
-                               "seconds": round(sec, 1), "estimate": round(stage_seconds(stage), 1)}, indent=1) + "\n")
+                               "seconds": round(sec, 1), "estimate": round(stage_seconds(stage), 1),
+                               "given": stage.given}, indent=1) + "\n")
     tmp.replace(marker)  # atomic: a kill leaves the marker whole or absent
     return sec
 
@@ -272,6 +335,9 @@ def run(all_stages: list, out: Path, log=print, runner=None, settings: dict | No
     for st in all_stages:
         if st.done(out):
             log(f"stage {st.name}: done (skipped)")
+        elif st.given:
+            log(f"stage {st.name}: given ({st.given['base']}), nothing to run")
+            run_stage(st, out, log, runner)
         else:
             log(f"stage {st.name}: running (~{_duration(stage_seconds(st))})")
             run_stage(st, out, log, runner)
@@ -286,4 +352,5 @@ def scale_dict(s: Scale) -> dict:
     return asdict(s)
 
 
-__all__ = ["COSTS", "EVAL_SEEDS", "SCALES", "Scale", "Stage", "StageFailed", "estimate_lines", "run", "stages"]
+__all__ = ["COSTS", "EVAL_SEEDS", "SCALES", "BadBase", "Scale", "Stage", "StageFailed", "check_base", "estimate_lines",
+           "run", "stages"]
