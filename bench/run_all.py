@@ -8,7 +8,14 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from bench import bench_grammar, bench_rollout, bench_simulator, bench_validate, bench_verify  # noqa: E402
+from bench import (  # noqa: E402
+    bench_grammar,
+    bench_rollout,
+    bench_simulator,
+    bench_student,
+    bench_validate,
+    bench_verify,
+)
 from bench.common import report  # noqa: E402
 
 
@@ -18,7 +25,7 @@ def main() -> int:
     parser.add_argument("--quick", action="store_true", help="fewer repetitions (CI)")
     args = parser.parse_args()
     rows = []
-    for mod in (bench_validate, bench_simulator, bench_verify, bench_grammar, bench_rollout):
+    for mod in (bench_validate, bench_simulator, bench_verify, bench_grammar, bench_rollout, bench_student):
         rows.extend(mod.run(quick=args.quick))
     report(rows)
     return 0
