@@ -48,8 +48,9 @@ def test_cli_builds_a_student(tmp_path, capsys):
     from adaptbench.cli import main
 
     out = tmp_path / "st"
-    assert main(["model", "student", "--out", str(out), "--tasks", "cereal", "--ask-seeds", "1", "--oracle-seeds",
-                 "2", "--steps", "2", "--hidden", "32", "--layers", "1", "--workers", "1", "--quiet"]) == 0
+    argv = ["model", "student", "--out", str(out), "--tasks", "cereal", "--ask-seeds", "100", "--oracle-seeds",
+            "101", "--steps", "2", "--hidden", "32", "--layers", "1", "--workers", "1", "--save-every", "1", "--quiet"]
+    assert main(argv) == 0
     info = json.loads((out / "student.json").read_text())
     assert info["pretrain"]["episodes"] == 2 * 12 and info["pretrain"]["skipped"] == 0
     lines = [json.loads(x) for f in ("oracle-ask", "oracle") for x in (out / "data" / f"{f}.jsonl").read_text().splitlines()]
@@ -57,6 +58,9 @@ def test_cli_builds_a_student(tmp_path, capsys):
     assert any(r["questions"] for r in lines if r["agent"] == "oracle-ask")
     assert not any(r["questions"] for r in lines if r["agent"] == "oracle")
     assert Path(out / "model.safetensors").is_file()
+    assert (out / "trainer" / "checkpoint-2" / "trainer_state.json").is_file()  # resumable, every --save-every
+    capsys.readouterr()
+    assert main(argv) == 0 and "already trained" in capsys.readouterr().err  # a finished build: nothing again
     assert main(["model", "student", "--out", str(out), "--split", "9"]) == 2
 
 
