@@ -191,15 +191,21 @@ def reproduce_rows(domain, work: Path, quick: bool) -> list:
     return rows
 
 
-def run(quick: bool = False, threads: int = 1) -> list:
-    """Measure and return report rows."""
+def run(quick: bool = False, threads: int = 1, each=None) -> list:
+    """Measure and return report rows; `each(rows)` after each part (training, rollouts, reproduce)."""
     from adaptbench.compiler import load_domain
 
     domain = load_domain(SPEC)
+    rows: list = []
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
-        return training_rows(domain, work, quick) + rollout_rows(domain, work, quick, threads) + \
-            reproduce_rows(domain, work, quick)
+        for part in (lambda: training_rows(domain, work, quick), lambda: rollout_rows(domain, work, quick, threads),
+                     lambda: reproduce_rows(domain, work, quick)):
+            got = part()
+            rows += got
+            if each:
+                each(got)
+    return rows
 
 
 # ------------------------------------------------------------------ --table
@@ -259,7 +265,7 @@ def main(argv=None) -> int:
     args = p.parse_args(argv)
     if args.table:
         return table(args)
-    report(run(args.quick, args.threads))
+    run(args.quick, args.threads, each=lambda rows: (report(rows), sys.stdout.flush()))  # each part when measured
     return 0
 
 
