@@ -93,6 +93,29 @@ def test_score_matches_the_transformers_backend(domain, tiny, backend, server):
         assert a.logprobs == pytest.approx(b.logprobs, abs=2e-4)
 
 
+def test_score_ids_in_vllms_prompt_logprobs_form_match_the_transformers_backend(domain, tiny, backend):
+    """The scoring primitive on both backends: groups of (prompt ids, [completion ids]) give the same
+    log-probabilities, the served one read from vLLM's `prompt_logprobs` of token-id prompts."""
+    from adaptbench.llm.backend import continuation_ids
+    from adaptbench.llm.openai_backend import OpenAIBackend
+
+    from .fake_server import serve
+
+    srv, url = serve(backend, logprobs="vllm")
+    try:
+        ob = OpenAIBackend(url, "tiny", str(tiny))
+        p = ob.encode(_request(domain, ob.tokenizer, None).prompt)
+        a, b = (continuation_ids(ob.tokenizer, t) for t in ("Look for eggs", 'Ask "Scrambled?"'))
+        groups = [(p, [a, b]), (p[:-2], [b]), (p, [])]
+        served, local = ob.score_ids(groups), backend.score_ids(groups)
+        assert [len(g) for g in served] == [len(g) for g in local] == [2, 1, 0]
+        for x, y in zip([*served[0], *served[1]], [*local[0], *local[1]], strict=True):
+            assert len(x) == len(y) > 0 and x == pytest.approx(y, abs=2e-4)
+        assert all(isinstance(q["prompt"], list) and q["prompt_logprobs"] == 0 for q in srv.bodies)
+    finally:
+        srv.shutdown()
+
+
 def test_unreachable_server_is_a_clear_error(tiny):
     from adaptbench.llm.backend import Request
     from adaptbench.llm.openai_backend import OpenAIBackend, ServerError

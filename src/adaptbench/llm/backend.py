@@ -3,9 +3,14 @@
     backend = make_backend("transformers", model="models/tiny", device="cpu")
     outs = backend.generate([Request(text, grammar, stop=(), max_tokens=48), ...])
     scores = backend.score(text, ["Look for eggs", "Declare Done"])
+    logprobs = backend.score_ids([(prompt_ids, [ids_a, ids_b]), ...])   # [[(lp, lp, ...), ...], ...]
 
 `Request.prompt` is rendered text (`chat.render`): both backends hold the model's tokenizer, so prompts
-are rendered, counted and truncated the same way for a local model and a served one.
+are rendered, counted and truncated the same way for a local model and a served one. Scoring has one
+primitive, `score_ids`: the log-probability of every given completion id after given prompt ids (the
+local model's forward pass; a served engine's prompt log-probabilities). `score` is built on it here,
+the same for both: the prompt encoded, each text continuation's ids ending with the chat template's end
+token (`continuation_ids`).
 """
 
 from __future__ import annotations
@@ -128,9 +133,15 @@ class Scored:
     @property
     def mean_prob(self) -> float:
         """The mean of the tokens' probabilities (0.0 for an empty continuation)."""
-        import math
+        return mean_prob(self.logprobs)
 
-        return sum(math.exp(x) for x in self.logprobs) / len(self.logprobs) if self.logprobs else 0.0
+
+def mean_prob(logprobs) -> float:
+    """The arithmetic mean of the probabilities of per-token log-probabilities (0.0 for none):
+    Reflection-DPO's P(a | x)."""
+    import math
+
+    return sum(math.exp(x) for x in logprobs) / len(logprobs) if logprobs else 0.0
 
 
 class Backend(ABC):
@@ -145,12 +156,29 @@ class Backend(ABC):
         """One `Completion` per `Request`, in order (batched where the backend can)."""
 
     @abstractmethod
+    def encode(self, text: str) -> list:
+        """Token ids of rendered text (no special tokens added: the chat template holds them)."""
+
+    @abstractmethod
+    def score_ids(self, groups, dtype: str | None = None) -> list:
+        """The scoring primitive: for each `(prompt ids, [completion ids, ...])` group, per completion
+        the log-probability of each of its ids after the prompt and the completion's ids before it (a
+        tuple of floats, one per id), in order: a list of lists. A group's prompt may be read once for
+        all its completions; groups are independent. `dtype` ("float32"): the precision of the forward
+        pass, where the backend can choose it (`score_dtype` says which it is)."""
+
     def score(self, prompt: str, continuations, dtype: str | None = None) -> list:
         """One `Scored` per continuation of the rendered `prompt`. A continuation is text, scored as a
         complete answer (its canonical tokens and the end token the chat template closes an assistant
         turn with: `continuation_ids`), or a sequence of token ids, scored as they are (a completion's
-        `token_ids`). `dtype` ("float32"): the precision of the forward pass, where the backend can
-        choose it (`score_dtype` says which it is)."""
+        `token_ids`). One `score_ids` group."""
+        conts = [continuation_ids(self.tokenizer, c) for c in continuations]
+        if not conts:
+            return []
+        (lps,) = self.score_ids([(self.encode(prompt), conts)], dtype=dtype)
+        return [Scored(c if isinstance(c, str) else self.tokenizer.decode(ids, skip_special_tokens=True), lp,
+                       tuple(ids))
+                for c, ids, lp in zip(continuations, conts, lps, strict=True)]
 
     def score_dtype(self, dtype: str | None = None) -> str:
         """The precision `score(..., dtype)` runs the model in ("server": whatever the server uses)."""

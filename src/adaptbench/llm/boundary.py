@@ -24,7 +24,7 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass, replace
 
-from .backend import Completion, Request, Scored
+from .backend import Completion, Request, Scored, continuation_ids
 
 PROBES = ("Look", "Ask", "I", "a", '"', "1")  # words that may follow a prefix
 _START = re.compile(r"(?m)^start(\s*):")
@@ -107,6 +107,15 @@ def generate(backend, requests) -> list:
     healed = [heal(backend.tokenizer, r) for r in requests]
     outs = backend.generate([r for r, _ in healed])
     return [unheal(o, tail, r.grammar is not None) for o, (_, tail), r in zip(outs, healed, requests, strict=True)]
+
+
+def score_group(backend, prompt: str, continuations) -> tuple:
+    """The `score_ids` group (prompt ids, [completion ids, ...]) that `score` reads for these
+    continuations of `prompt`: healed the same way (text continuations' ids end with the end token,
+    `continuation_ids`; ids as they are)."""
+    h = split_tail(backend.tokenizer, prompt)
+    conts = [h.tail + c if h.tail and isinstance(c, str) else c for c in continuations]
+    return backend.encode(h.head if h.tail else prompt), [continuation_ids(backend.tokenizer, c) for c in conts]
 
 
 def score(backend, prompt: str, continuations, dtype: str | None = None) -> list:

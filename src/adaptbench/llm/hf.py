@@ -21,11 +21,9 @@ from . import chat
 from .backend import (
     Backend,
     Completion,
-    Scored,
     canonical,
     check_device,
     context_limit,
-    continuation_ids,
     cut_at_stop,
     load_tokenizer,
 )
@@ -223,20 +221,20 @@ class TransformersBackend(Backend):
         return kept
 
     @torch.no_grad()
-    def score(self, prompt: str, continuations, dtype: str | None = None) -> list:
-        """Per-token log-probabilities of each continuation after `prompt` (text: its canonical tokens
-        and the chat template's end token; ids: as they are, `backend.continuation_ids`). The prompt is
-        read once; its continuations are read after its keys and values, `batch_size` per pass
+    def score_ids(self, groups, dtype: str | None = None) -> list:
+        """Per-token log-probabilities of each group's completions (`Backend.score_ids`): a group's
+        prompt is read once; its completions are read after its keys and values, `batch_size` per pass
         (`scoring`). `dtype` ("float32"): run the model in that precision (`score_dtype`)."""
         model = self._scorer(dtype)
-        p = self.encode(prompt)
-        conts = [continuation_ids(self.tokenizer, c) for c in continuations]
-        if not conts:
-            return []
-        first, layers = read_prompt(model, p)
         out = []
-        for i in range(0, len(conts), self.batch_size):
-            out += score_after(model, first, layers, len(p), conts[i:i + self.batch_size], self.pad_id)
-        return [Scored(c if isinstance(c, str) else self.tokenizer.decode(ids, skip_special_tokens=True), lp,
-                       tuple(ids))
-                for c, ids, lp in zip(continuations, conts, out, strict=True)]
+        for prompt, conts in groups:
+            conts = [list(c) for c in conts]
+            if not conts:
+                out.append([])
+                continue
+            first, layers = read_prompt(model, list(prompt))
+            got = []
+            for i in range(0, len(conts), self.batch_size):
+                got += score_after(model, first, layers, len(prompt), conts[i:i + self.batch_size], self.pad_id)
+            out.append(got)
+        return out

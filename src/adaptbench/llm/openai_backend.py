@@ -8,8 +8,10 @@ backend would. The grammar goes the way vLLM's structured outputs take it
 (`"structured_outputs": {"grammar": ...}`); what comes back is checked with the request's validator
 (the simulator's parser) and, if the server did not enforce the grammar, asked once more (sampled at
 temperature 0.7). A completion carries its generated ids where the server returns them (vLLM's
-`return_token_ids`; None otherwise: `transformers serve`). `score` reads prompt log-probabilities
-(`echo` + `logprobs`, or vLLM's `prompt_logprobs`). Requests of one batch are sent concurrently. Standard library only (urllib).
+`return_token_ids`; None otherwise: `transformers serve`). `score_ids` (the scoring primitive `score`
+is built on, `backend`) reads the server's prompt log-probabilities of prompt ids followed by completion
+ids (vLLM's `prompt_logprobs`, or `echo` + `logprobs`), so a served engine scores exactly the ids the
+local backend would. Requests of one batch are sent concurrently. Standard library only (urllib).
 
 `transformers serve` (transformers 5.x) takes only text prompts and refuses the grammar field (HTTP
 422): `OpenAIBackend(..., text_prompts=True, grammar_field=False)` sends the rendered text and leaves
@@ -31,10 +33,8 @@ from .backend import (
     Backend,
     Completion,
     ModelError,
-    Scored,
     canonical,
     context_limit,
-    continuation_ids,
     cut_at_stop,
     load_tokenizer,
     request_seed,
@@ -160,26 +160,44 @@ class OpenAIBackend(Backend):
         with ThreadPoolExecutor(max_workers=max(1, min(self.concurrency, len(requests)))) as pool:
             return list(pool.map(self._one, requests, seeds))
 
-    def _score_one(self, p: list, cont) -> Scored:
-        c = continuation_ids(self.tokenizer, cont)
-        body = {"model": self.model, "prompt": self.tokenizer.decode(p + c) if self.text_prompts else p + c,
+    def _score_one(self, prompt: list, completion: list) -> tuple:
+        ids = list(prompt) + list(completion)
+        body = {"model": self.model, "prompt": self.tokenizer.decode(ids) if self.text_prompts else ids,
                 "max_tokens": 1, "temperature": 0.0, "echo": True, "logprobs": 0, "prompt_logprobs": 0}
         choice = self._post("/completions", body)["choices"][0]
-        text = cont if isinstance(cont, str) else self.tokenizer.decode(c, skip_special_tokens=True)
-        return Scored(text, _prompt_logprobs(choice, p + c)[len(p):], tuple(c))
+        return _prompt_logprobs(choice, ids, self.url)[len(prompt):]
 
-    def score(self, prompt: str, continuations, dtype: str | None = None) -> list:
-        """Per-token log-probabilities of each continuation (text: with the end token; ids: as they are)
-        from the server's prompt log-probs, in the server's precision (`dtype` cannot change it)."""
-        p = self.encode(prompt)
-        with ThreadPoolExecutor(max_workers=max(1, min(self.concurrency, len(continuations)))) as pool:
-            return list(pool.map(lambda c: self._score_one(p, c), continuations))
+    def score_ids(self, groups, dtype: str | None = None) -> list:
+        """Per-token log-probabilities of each group's completions (`Backend.score_ids`) from the
+        server's prompt log-probabilities: one request per completion (prompt ids then completion ids,
+        echoed, one token generated), all of them sent concurrently; in the server's precision (`dtype`
+        cannot change it). ServerError when the server returns none."""
+        jobs = [(g, list(prompt), list(c)) for g, (prompt, conts) in enumerate(groups) for c in conts]
+        out: list = [[] for _ in groups]
+        if not jobs:
+            return out
+        with ThreadPoolExecutor(max_workers=max(1, min(self.concurrency, len(jobs)))) as pool:
+            for (g, _, _), lps in zip(jobs, pool.map(lambda j: self._score_one(j[1], j[2]), jobs), strict=True):
+                out[g].append(lps)
+        return out
+
+    def check_scoring(self) -> None:
+        """ServerError unless the server returns prompt log-probabilities for token-id prompts (vLLM's
+        `prompt_logprobs`, or `echo` with `logprobs`): one short prompt scored before any episode."""
+        ids = self.encode(self.tokenizer.apply_chat_template([{"role": "user", "content": "Hello"}],
+                                                             tokenize=False, add_generation_prompt=True))
+        self.score_ids([(ids[:-1] or ids, [ids[-1:]])])
 
 
-def _prompt_logprobs(choice: dict, ids: list) -> tuple:
+NO_LOGPROBS = ("returned no prompt log-probabilities: scoring needs vLLM's `prompt_logprobs` (or `echo` with "
+               "`logprobs`) on token-id prompts; serve the model with vLLM (docs/llm.md)")
+
+
+def _prompt_logprobs(choice: dict, ids: list, url: str = "the server") -> tuple:
     """The log-probability of each prompt token (the first has none: 0.0) from a completions choice:
     vLLM's `prompt_logprobs` (a list of {token id: {logprob}} dicts) or the legacy `echo` form
-    (`logprobs.token_logprobs` over prompt then completion)."""
+    (`logprobs.token_logprobs` over prompt then completion). ServerError when neither is there, or
+    they do not cover every prompt token."""
     pl = choice.get("prompt_logprobs")
     if pl is not None:
         out = []
@@ -188,12 +206,17 @@ def _prompt_logprobs(choice: dict, ids: list) -> tuple:
                 out.append(0.0)
                 continue
             hit = entry.get(str(tok)) or entry.get(tok)
+            if hit is None:
+                raise ServerError(f"{url} returned prompt log-probabilities without the prompt's own token {tok}")
             out.append(float(hit["logprob"] if isinstance(hit, dict) else hit))
-        return tuple(out)
-    lp = (choice.get("logprobs") or {}).get("token_logprobs")
-    if lp is None:
-        raise ServerError("the server returned no prompt log-probabilities (needs echo+logprobs or prompt_logprobs)")
-    return tuple(0.0 if x is None else float(x) for x in lp[:len(ids)])
+    else:
+        lp = (choice.get("logprobs") or {}).get("token_logprobs")
+        if lp is None:
+            raise ServerError(f"{url} {NO_LOGPROBS}")
+        out = [0.0 if x is None else float(x) for x in lp[:len(ids)]]
+    if len(out) < len(ids):
+        raise ServerError(f"{url} returned {len(out)} prompt log-probabilities for {len(ids)} prompt tokens: {NO_LOGPROBS}")
+    return tuple(out)
 
 
 def http_advice(where: str, code: int, text: str, body: dict) -> str:

@@ -6,9 +6,11 @@ where both act the same (same parsed action) are skipped (and, only when asked, 
 row: `skip_after_failures`, this project's option, not the paper's); otherwise the student reflects (or the
 topic proposer asks), the user answers, the row's prompt x is fitted to `max_length` keeping every question
 and answer (`rows.fit_prompt`), P(a^t|x), P(a^t|x,q,answer), P(a^s|x) are scored on exactly that x through
-the backend's `score`, and the decision rule (`decide`) picks the chosen completion. The rejected answer (the
-student's own) keeps the ids the student generated (`rejected_token_ids`, `training.ids`). Rows go to
-`pairs.jsonl` as they are made.
+the backend's scoring primitive (`score.steps_probabilities`: the asked steps of a batch in one call, so a
+served backend has them all in flight), and the decision rule (`decide`) picks the chosen completion. The
+rejected answer (the student's own) keeps the ids the student generated (`rejected_token_ids`,
+`training.ids`). Rows go to `pairs.jsonl` as they are made. The student runs on either backend: a local
+model or a served engine (`--backend openai`), the rows the same in meaning (same ids, same scoring).
 
 With `interactions=2` each (persona, task, seed) runs twice in the same scene: the second interaction's
 student prompt carries the prior-knowledge summary of the first (`prior.prior_summary`: what the user
@@ -48,7 +50,7 @@ from .relabel import (
     topics,
 )
 from .rows import completion_tokens, fit_prompt
-from .score import SCORE_DTYPE, step_probabilities
+from .score import SCORE_DTYPE, Step, steps_probabilities
 
 PHASES = ("student", "teacher", "reflection", "scoring")
 MAX_LENGTH = 8192  # fits the shipped students' prompts at 50 steps (docs/training.md): no row is shrunk
@@ -201,8 +203,37 @@ class Builder:
             else:
                 asks.append((r, v, d, a_t))
         questions = self._reflect(asks)
-        for (r, v, d, a_t), q in zip(asks, questions, strict=True):
-            self.store.append(self._row(r, v, d, a_t, q, None))
+        self._asked([(r, v, d, a_t, q) for (r, v, d, a_t), q in zip(asks, questions, strict=True)])
+
+    def _asked(self, items: list) -> None:
+        """The rows of the steps that asked: each fitted and its question answered in turn, then all
+        scored in one batch (`steps_probabilities`) and written in order. On `TooLong` the rows before
+        the one that does not fit are still scored and written."""
+        ready = []
+        try:
+            for r, v, d, a_t, q in items:
+                ready.append(self._ready(r, v, d, a_t, q))
+        except TooLong:
+            self._score_rows(items, ready)
+            raise
+        self._score_rows(items, ready)
+
+    def _ready(self, r: _Run, view, decision, a_t: str, q: str):
+        """(fitted prompt, the user's answer, the `Step` to score) of an asked step."""
+        tok = self.student.backend.tokenizer
+        fitted = self._fit(r, view, decision.prompt, decision.action, a_t, q)
+        answer = r.episode.env.user(question_text(q) or q, ()) if question_text(q) else ""
+        x = render(tok, fitted.prompt)  # exactly the prompt the row trains on
+        xq = render(tok, answered_prompt(self.student, fitted.prompt, view, q, answer))
+        ids = (decision.stats or {}).get("token_ids")
+        return fitted, answer, Step(x, xq, a_t, decision.action, None if ids is None else tuple(ids))
+
+    def _score_rows(self, items: list, ready: list) -> None:
+        t0 = time.perf_counter()
+        probs = steps_probabilities(self.student.backend, [step for _, _, step in ready], SCORE_DTYPE)
+        self.times.add("scoring", t0)
+        for (r, v, d, a_t, q), (fitted, answer, _), p in zip(items, ready, probs, strict=False):
+            self.store.append(self._row(r, v, d, a_t, q, None, fitted, answer, p))
 
     def _skip(self, r: _Run, student: str, teacher: str) -> str | None:
         n = self.s.skip_after_failures
@@ -230,21 +261,16 @@ class Builder:
             return preference_question(next(p for p in persona.preferences if p.id == named[0]))
         return topic_question(self.topics, a_t, view.task_text)
 
-    def _row(self, r: _Run, view, decision, a_t: str, q: str | None, reason: str | None) -> dict:
+    def _row(self, r: _Run, view, decision, a_t: str, q: str | None, reason: str | None, fitted=None,
+             answer: str | None = None, probs=None) -> dict:
+        """A step's row: skipped for `reason`, or (reason None) an asked step with its fitted prompt, the
+        user's answer and its scores (`_asked`), the decision rule picking the chosen completion."""
         tok = self.student.backend.tokenizer
-        fitted = self._fit(r, view, decision.prompt, decision.action, a_t, q)
+        if fitted is None:
+            fitted = self._fit(r, view, decision.prompt, decision.action, a_t, q)
         prompt = fitted.prompt
-        answer = None
-        probs = None
         kind = "skipped"
         if reason is None:
-            answer = r.episode.env.user(question_text(q) or q, ()) if question_text(q) else ""
-            t0 = time.perf_counter()
-            x = render(tok, prompt)  # exactly the prompt the row trains on
-            xq = render(tok, answered_prompt(self.student, prompt, view, q, answer))
-            probs = step_probabilities(self.student.backend, x, xq, a_t, decision.action,
-                                       (decision.stats or {}).get("token_ids"), SCORE_DTYPE)
-            self.times.add("scoring", t0)
             d = decide(probs.p_teacher, probs.p_teacher_given_answer, probs.p_student, self.s.eps1, self.s.eps2)
             kind, reason = d.kind, d.skip_reason
         chosen = {"question": q, "teacher": a_t}.get(kind)
