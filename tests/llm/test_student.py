@@ -72,6 +72,6 @@ def test_train_commands_take_the_shipped_students_name():
     from adaptbench.cli.train import _check_data_args
     from adaptbench.llm.named import named_path
 
-    args = SimpleNamespace(student="student", teacher_model=None, workers=1, device="cpu")
+    args = SimpleNamespace(student="student", teacher_model=None, workers=1, device="cpu", backend="transformers")
     _check_data_args(args)
     assert args.student == str(named_path("student"))
