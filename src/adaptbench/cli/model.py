@@ -292,7 +292,7 @@ def _add_student_command(msub) -> None:
     from .episode import add_spec_option
 
     d = StudentSettings()
-    q = msub.add_parser("student", help="build the tiny student that can ask (the shipped `--model student`)",
+    q = msub.add_parser("student", help="build a tiny student from teacher trajectories (with --ask-seeds none: a base student like the shipped `--model student`)",
                         description="Rolls out oracle-ask (the oracle's plan, asking first where it departs from the "
                                     "defaults) and oracle on the split's training personas x all tasks, builds a tiny "
                                     "model (adapt model init) and pretrains it on those trajectories with TRL's SFT "

@@ -1,5 +1,6 @@
 """Models shipped inside the package, named instead of given as a directory: `--model student` is the
-tiny student that can ask (`adapt model student` builds it; docs/training.md), at
+base student that cooks (behaviour-cloned on the oracle's episodes of split 0's training personas;
+`adapt model curve` built it, docs/training.md), at
 `adaptbench/checkpoints/student/`. A path that exists always wins over a name."""
 
 from __future__ import annotations
