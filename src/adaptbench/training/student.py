@@ -1,6 +1,8 @@
-"""The tiny student that can ask, built by one command with fixed seeds:
+"""A tiny student built by one command with fixed seeds: by default one that can ask (the checkpoint shipped
+as `--model student` until 2026-11-27); with `--ask-seeds none`, a base student on the oracle alone, like the
+one shipped now (built by `adapt model curve`, docs/training.md):
 
-    adapt model student --out models/student          # = the checkpoint shipped as `--model student`
+    adapt model student --out models/student
 
 1. Teacher trajectories on the split's training personas (its unseen personas are never seen), all 8
    tasks: `oracle-ask` (the oracle's plan, asking first wherever that plan departs from the defaults) on
