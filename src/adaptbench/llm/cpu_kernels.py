@@ -40,16 +40,21 @@ def packing_supported() -> bool:
 
 
 class PackedLinear(torch.nn.Module):
-    """A linear layer whose weight is bfloat16 in oneDNN's blocked layout (reordered once). Its input
-    is rounded to bfloat16; the output comes back in the input's dtype. Inference only (no gradient
-    reaches the packed weight)."""
+    """A linear layer whose weight is bfloat16 in oneDNN's blocked layout (reordered once); given
+    several layers of one input, their weights stacked (one product for all: their outputs side by
+    side). Its input is rounded to bfloat16; the output comes back in the input's dtype. Inference
+    only (no gradient reaches the packed weight)."""
 
-    def __init__(self, linear: torch.nn.Linear):
+    def __init__(self, *linears: torch.nn.Linear):
         super().__init__()
-        self.in_features, self.out_features = linear.in_features, linear.out_features
-        weight = linear.weight.detach().to(torch.bfloat16)
+        self.in_features = linears[0].in_features
+        self.out_features = sum(lin.out_features for lin in linears)
+        weight = torch.cat([lin.weight.detach() for lin in linears]).to(torch.bfloat16)
         self.register_buffer("packed", torch.ops.mkldnn._reorder_linear_weight(weight, 1), persistent=False)
-        bias = None if linear.bias is None else linear.bias.detach().to(torch.bfloat16)
+        biases = [lin.bias for lin in linears]
+        bias = None if all(b is None for b in biases) else torch.cat(
+            [b.detach() if b is not None else lin.weight.new_zeros(lin.out_features)
+             for b, lin in zip(biases, linears, strict=True)]).to(torch.bfloat16)
         self.register_buffer("bias", bias, persistent=False)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
@@ -72,6 +77,8 @@ def pack_linears(model, keep_dtype: bool = False) -> int:
         return 0
     if model.dtype != torch.bfloat16 and not keep_dtype:
         return 0
+    for layer in layers:
+        _fuse(layer)
     n = 0
     for parent in layers.modules():
         for name, child in list(parent.named_children()):
@@ -79,3 +86,21 @@ def pack_linears(model, keep_dtype: bool = False) -> int:
                 setattr(parent, name, PackedLinear(child))
                 n += 1
     return n
+
+
+FUSED = ("adapt_qkv", "adapt_gate_up")  # what `_fuse` adds: the attention's q, k, v and the MLP's gate, up stacked
+
+
+def _fuse(layer) -> None:
+    """Give a Llama-style decoder layer stacked packed weights for `one_row.step`: one product for the
+    query, key and value projections (`self_attn.adapt_qkv`) and one for the MLP's gate and up
+    projections (`mlp.adapt_gate_up`): a oneDNN call costs ~15 us of fixed overhead (measured, one
+    row), 210 a token for SmolLM2's 30 layers unfused, 120 fused. The layer's own modules stay (the
+    forward over a prompt uses them), so these weights are held twice."""
+    attn, mlp = getattr(layer, "self_attn", None), getattr(layer, "mlp", None)
+    qkv = [getattr(attn, n, None) for n in ("q_proj", "k_proj", "v_proj")]
+    gate_up = [getattr(mlp, n, None) for n in ("gate_proj", "up_proj")]
+    if all(type(m) is torch.nn.Linear for m in qkv):
+        attn.adapt_qkv = PackedLinear(*qkv)
+    if all(type(m) is torch.nn.Linear for m in gate_up) and hasattr(mlp, "down_proj") and hasattr(mlp, "act_fn"):
+        mlp.adapt_gate_up = PackedLinear(*gate_up)

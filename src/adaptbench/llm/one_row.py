@@ -12,7 +12,8 @@ runs the same modules and the same tensor operations in the same order (the laye
 layers and MLP are called as modules; rotary embedding, `apply_rotary_pos_emb` and SDPA with grouped
 heads as transformers calls them for one unmasked query), so its hidden state is the forward's, bit
 for bit (tested), and writes its keys and values into the session's `BufferLayer`s as the forward
-would.
+would. With packed bfloat16 weights (`cpu_kernels`) it takes the query, key and value projections in
+one product and the MLP's gate and up in another (the stacked weights `cpu_kernels` adds).
 """
 
 from __future__ import annotations
@@ -42,16 +43,33 @@ def step(model, cache, token: int, position: int) -> torch.Tensor:
     cos, sin = inner.rotary_emb(h, torch.tensor([[position]], dtype=torch.long, device=dev))
     for layer, kv in zip(inner.layers, cache.layers, strict=True):
         attn = layer.self_attn
-        x = layer.input_layernorm(h)
-        shape = (1, 1, -1, attn.head_dim)
-        q = attn.q_proj(x).view(shape).transpose(1, 2)
-        k = attn.k_proj(x).view(shape).transpose(1, 2)
-        v = attn.v_proj(x).view(shape).transpose(1, 2)
+        q, k, v = _qkv(attn, layer.input_layernorm(h))
         q, k = apply_rotary_pos_emb(q, k, cos, sin)
         k, v = kv.update(k, v)
         o = F.scaled_dot_product_attention(q, k, v, attn_mask=None, dropout_p=0.0, scale=attn.scaling,
                                            is_causal=False, enable_gqa=attn.num_key_value_groups > 1)
         o = o.reshape(1, -1, 1, v.shape[-1]).transpose(1, 2).contiguous()
         h = h + attn.o_proj(o.reshape(1, 1, -1).contiguous())
-        h = h + layer.mlp(layer.post_attention_layernorm(h))
+        h = h + _mlp(layer.mlp, layer.post_attention_layernorm(h))
     return inner.norm(h)[:, -1]
+
+
+def _qkv(attn, x: torch.Tensor) -> tuple:
+    """Query, key and value [1, heads, 1, dim] of a normed hidden state: from the projections stacked
+    into one product where `cpu_kernels` packed them so, else from each projection."""
+    shape = (1, 1, -1, attn.head_dim)
+    fused = getattr(attn, "adapt_qkv", None)
+    if fused is None:
+        parts = attn.q_proj(x), attn.k_proj(x), attn.v_proj(x)
+    else:
+        parts = fused(x).split([attn.q_proj.out_features, attn.k_proj.out_features, attn.v_proj.out_features], -1)
+    return tuple(p.reshape(shape).transpose(1, 2) for p in parts)
+
+
+def _mlp(mlp, x: torch.Tensor) -> torch.Tensor:
+    """The MLP (down(act(gate x) * up x)), gate and up in one product where they were packed so."""
+    fused = getattr(mlp, "adapt_gate_up", None)
+    if fused is None:
+        return mlp(x)
+    gate, up = fused(x).chunk(2, dim=-1)
+    return mlp.down_proj(mlp.act_fn(gate) * up)
