@@ -6,8 +6,9 @@ A small model (the tiny test model, a few MB) gains nothing from more torch thre
 its own float32 with 16 episodes batched. A real model (SmolLM2-135M: 538 MB in float32) is measured
 in docs/smollm2.md (`python bench/bench_llm.py --model models/smollm2 --settings`): each step reads a
 few hundred new prompt tokens per episode (compute-bound: two threads and bfloat16 help, on a CPU with
-native bfloat16 instructions) and decodes ~10 tokens (memory-bound on the weights; bfloat16 pays off
-only when 16 rows share each pass: one episode at a time, `--batch 1`, stays in its own precision).
+native bfloat16 instructions) and decodes ~10 tokens (memory-bound on the weights). One row at a time
+(`--batch 1`, or a run of one episode) runs as `bfloat16-weights` (float32 with packed bfloat16 linear
+weights, `cpu_kernels`): plain bfloat16's attention is slow for one query row.
 `--dtype`, `--batch` given on the command line win.
 """
 
