@@ -8,6 +8,8 @@ per second batched (one generate for every episode that asks in a round) versus 
                                                  # builds the tiny model when --model is absent
     python bench/bench_llm.py --shape smollm2 [--model DIR] --quick   # SmolLM2-135M's shape, random weights
     python bench/bench_llm.py --model models/smollm2 --settings   # a real model's settings (llm_settings.py)
+    python bench/bench_llm.py --model models/smollm2 --episode    # one row: tokens/s at batch 1, and one
+                                                 # 50-step planner episode as `adapt rollout` runs it
 
 Needs the `models` extra. Figures go to docs/llm.md.
 """
@@ -227,6 +229,64 @@ def run(model: str | None, quick: bool, device: str = "cpu", dtype: str = "auto"
     ]
 
 
+def one_row(model: str, dtype: str = "auto", threads: int | None = None, steps: int = 50, rounds: int = 3) -> list:
+    """What one user waits for: decoding tokens/s at batch 1 (the planner's first prompt, `decode_speed`,
+    best of `rounds`), then one planner episode (juan, eggs, seed 0, offline user, `steps` steps) run as a
+    user runs it, `adapt rollout --agent planner --model DIR --max-steps 50`, in a process of its own:
+    whole-process wall time (imports, model load, grammars, every step), with the load average before
+    and after (the machine is shared: absolute figures are only as quiet as it was)."""
+    import json
+    import os
+    import subprocess
+
+    from adaptbench.compiler import load_domain
+    from adaptbench.llm.cpu import cpu_defaults
+    from adaptbench.llm.hf import TransformersBackend
+
+    domain = load_domain(SPEC)
+    s = cpu_defaults(model, batch=1)
+    dtype = s.dtype if dtype == "auto" else dtype
+    backend = TransformersBackend(model, dtype=dtype, batch_size=1, threads=threads or s.threads)
+    con, unc = decode_speed(domain, backend, 1, rounds)
+    rows = [(f"llm: settings: cpu {dtype}, {torch_threads()} torch threads, batch 1", weight_bytes_mb(model), "MB", "",
+             f"(model {model})"),
+            ("llm: constrained decoding tokens/s (batch 1)", con, "tok/s", ">= 25", "(forced tokens count; prompt apart)"),
+            ("llm: unconstrained decoding tokens/s (batch 1)", unc, "tok/s", ">= 25", "(every token a forward pass)")]
+    del backend
+    out = Path(tempfile.mkdtemp()) / "episode.jsonl"
+    cmd = [sys.executable, "-m", "adaptbench.cli", "rollout", "--agent", "planner", "--model", model,
+           "--personas", "juan", "--tasks", "eggs", "--seeds", "0", "--max-steps", str(steps), "--out", str(out),
+           "--quiet"] + ([] if dtype == s.dtype else ["--dtype", dtype])
+    load = os.getloadavg()[0]
+    t = time.perf_counter()
+    subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
+    wall = time.perf_counter() - t
+    rec = json.loads(out.read_text().splitlines()[-1])
+    st = [x.get("stats", {}) for x in rec["steps"]]
+    read = sum(x.get("read_seconds", 0) for x in st)
+    model_s = sum(x.get("seconds", 0) for x in st)
+    new = sum(x.get("prompt_tokens", 0) - x.get("cached_tokens", 0) for x in st)
+    passes = sum(x.get("tokens", 0) - x.get("forced_tokens", 0) for x in st)
+    return rows + [
+        (f"llm: one {steps}-step planner episode, whole process", wall, "s", "< 90" if steps == 50 else "",
+         f"(`adapt rollout`, {rec['agent_config'].get('dtype', '?')}; {len(st)} steps; load {load:.2f} before, "
+         f"{os.getloadavg()[0]:.2f} after)"),
+        ("llm: episode: prompt tokens read / seconds", new, "tokens", "", f"({read:.1f} s reading)"),
+        ("llm: episode: tokens generated / decoding seconds", sum(x.get("tokens", 0) for x in st), "tokens", "",
+         f"({model_s - read:.1f} s decoding; {passes} forward passes, {passes / max(model_s - read, 1e-9):.1f}/s)"),
+        ("llm: episode: outside the model", wall - model_s, "s", "", "(start-up, simulator, prompts, grammars)"),
+        ("llm: episode: actions", len({x["action"] for x in rec["steps"]}), "distinct", "",
+         "first: " + " | ".join(x["action"] for x in rec["steps"][:3])),
+    ]
+
+
+def weight_bytes_mb(model: str) -> float:
+    """Megabytes of the model's weight files."""
+    from adaptbench.llm.cpu import weight_bytes
+
+    return weight_bytes(model) / 2**20
+
+
 def torch_threads() -> int:
     """Torch's intra-op threads now."""
     import torch
@@ -246,9 +306,17 @@ def main() -> int:
     p.add_argument("--batches", default="1,16,64", help="batch sizes of the steps/s rows (default 1,16,64)")
     p.add_argument("--shape", choices=["smollm2"], help="build a random-weight model of this shape (SmolLM2-135M: "
                    "bench/model_shapes.py) into --model DIR, or a temp dir, and measure it")
+    p.add_argument("--episode", action="store_true", help="with --model: tokens/s at batch 1 and one 50-step "
+                   "planner episode as `adapt rollout` runs it (the CPU defaults for one episode; --dtype overrides)")
+    p.add_argument("--steps", type=int, default=50, help="--episode: the episode's step budget (default 50)")
     p.add_argument("--settings", action="store_true", help="with --model: steps/s under each backend setting "
                    "(threads, batch, session cache, budget, dtype; bench/llm_settings.py)")
     args = p.parse_args()
+    if args.episode:
+        if not args.model:
+            p.error("--episode needs --model DIR")
+        report(one_row(args.model, args.dtype, args.threads, args.steps, 1 if args.quick else 3))
+        return 0
     if args.settings:
         from adaptbench.compiler import load_domain
         from bench.llm_settings import run as settings

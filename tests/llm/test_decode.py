@@ -307,20 +307,31 @@ def test_the_cache_path_acts_as_model_generate_does_greedy_under_the_grammar(dom
     assert len({tuple(a) for a in want.values()}) > 1  # the episodes act differently
 
 
-def test_a_single_row_decodes_in_its_sessions_buffer_with_no_attention_mask(domain, tiny):
+@pytest.mark.parametrize("lean", [True, False])
+def test_a_single_row_decodes_in_its_sessions_buffer_with_no_attention_mask(domain, tiny, lean):
     """One row: every decoding pass goes without an explicit attention mask (no padding: the kernels
     that take none serve) and the session keeps the same cache layers step after step (written in
-    place, not copied per step or grown by concatenation per token)."""
+    place, not copied per step or grown by concatenation per token); through the lean pass
+    (`one_row.step`, the CPU default for a Llama model) or the model's forward."""
+    from adaptbench.llm import one_row
     from adaptbench.llm.backend import Request
 
     b = _sharp(tiny)
-    masks = []
+    b.model.__dict__["_adapt_lean"] = lean
+    masks, steps = [], []
 
     def hook(module, args, kwargs):
         if kwargs["input_ids"].shape[1] == 1:
             masks.append(kwargs.get("attention_mask"))
 
+    real = one_row.step
+
+    def counted(*args):
+        steps.append(args[2:])
+        return real(*args)
+
     handle = b.model.register_forward_pre_hook(hook, with_kwargs=True)
+    one_row.step = counted
     try:
         g = _grammar(domain)
         text = _prompts(domain, b, 1)[0]
@@ -331,7 +342,10 @@ def test_a_single_row_decodes_in_its_sessions_buffer_with_no_attention_mask(doma
             text = text + a.text + f"<|end|>\n<|user|>\nObservation: step {step}.<|end|>\n<|assistant|>\n"
     finally:
         handle.remove()
-    assert masks and all(m is None for m in masks)
+        one_row.step = real
+    passes = steps if lean else masks
+    assert passes and all(m is None for m in masks)
+    assert not (steps if not lean else masks)  # one path or the other, never both
     assert all(x is y for x, y in zip(kept[0], kept[2], strict=True))  # the same layer objects, reused
 
 

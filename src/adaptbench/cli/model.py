@@ -23,9 +23,10 @@ def add_rollout_options(p) -> None:
                    help="what serves --url (--backend openai): vllm (token-id prompts, grammars enforced) or "
                    "transformers-serve (text prompts, grammars checked and retried locally); default vllm")
     g.add_argument("--device", default="cpu", help="cpu, cuda, cuda:1 ... (default cpu)")
-    g.add_argument("--dtype", choices=["auto", "float32", "bfloat16", "float16"],
-                   help="default: the checkpoint's (auto); on a CPU, bfloat16 for a real-sized model where the CPU "
-                   "has bfloat16 instructions (llm/cpu.py, measured in docs/smollm2.md)")
+    g.add_argument("--dtype", choices=["auto", "float32", "bfloat16", "float16", "bfloat16-weights"],
+                   help="default: the checkpoint's (auto); on a CPU with bfloat16 instructions, for a real-sized "
+                   "model, bfloat16, or for one row at a time (--batch 1, or one episode) bfloat16-weights: "
+                   "float32 with packed bfloat16 linear weights (llm/cpu.py, measured in docs/smollm2.md)")
     g.add_argument("--batch", type=int, help="episodes advanced together (default 16)")
     g.add_argument("--max-steps", type=positive, default=50, help="step budget per episode, for every agent, "
                    "scripted ones included (default 50, the paper's; always-ask gets 1 + 1/N times as many steps "
@@ -59,7 +60,7 @@ def _fail(msg: str, code: int = 2):
     raise SystemExit(code)
 
 
-def _backend(args, model: str):
+def _backend(args, model: str, episodes: int | None = None):
     try:
         from ..llm.backend import make_backend
     except ImportError as exc:  # pragma: no cover - the models extra is missing
@@ -74,7 +75,7 @@ def _backend(args, model: str):
                                    concurrency=max(16, getattr(args, "batch", None) or 16), **_sampling(args))
             backend.probe()
             return backend
-        return make_backend("transformers", model=model, device=args.device, **_cpu_settings(args, model),
+        return make_backend("transformers", model=model, device=args.device, **_cpu_settings(args, model, episodes),
                             **_sampling(args))
     except ImportError as exc:
         _fail(f"{exc}; install the models extra: {install_hint('models')}")
@@ -87,15 +88,16 @@ def _sampling(args) -> dict:
     return {"temperature": getattr(args, "temperature", 0.0), "seed": getattr(args, "sample_seed", 0)}
 
 
-def _cpu_settings(args, model: str) -> dict:
+def _cpu_settings(args, model: str, episodes: int | None = None) -> dict:
     """dtype, torch threads and batch size of the transformers backend: what the command line gives, else
-    the size-based defaults of `llm.cpu` on a CPU (the checkpoint's dtype and 16 rows elsewhere)."""
+    the size-based defaults of `llm.cpu` on a CPU (the checkpoint's dtype and 16 rows elsewhere; `episodes`:
+    how many the run has, when known: one episode decodes one row whatever the batch)."""
     from ..llm.cpu import cpu_defaults
 
     dtype, batch = getattr(args, "dtype", None), getattr(args, "batch", None)
     if args.device != "cpu":
         return {"dtype": dtype or "auto", "batch_size": batch or 16}
-    s = cpu_defaults(model, batch)
+    s = cpu_defaults(model, batch, episodes)
     return {"dtype": dtype or s.dtype, "threads": s.threads, "batch_size": batch or s.batch}
 
 
@@ -134,7 +136,7 @@ def rollout_options(args, agents: list) -> dict:
     if any(spec(a).resolved_kind() != "model" for a in agents):
         scripted = next(a for a in agents if spec(a).resolved_kind() != "model")
         _fail(f"agent '{scripted}' cannot be mixed with language-model agents in one command")
-    backend = _backend(args, args.model)
+    backend = _backend(args, args.model, len(agents))  # one agent name per job
     user_backend = backend if args.user == "offline" or not args.user_model or args.user_model == args.model \
         else _backend(args, args.user_model)
     if args.user == "llm":

@@ -6,8 +6,9 @@ A small model (the tiny test model, a few MB) gains nothing from more torch thre
 its own float32 with 16 episodes batched. A real model (SmolLM2-135M: 538 MB in float32) is measured
 in docs/smollm2.md (`python bench/bench_llm.py --model models/smollm2 --settings`): each step reads a
 few hundred new prompt tokens per episode (compute-bound: two threads and bfloat16 help, on a CPU with
-native bfloat16 instructions) and decodes ~10 tokens (memory-bound on the weights; bfloat16 pays off
-only when 16 rows share each pass: one episode at a time, `--batch 1`, stays in its own precision).
+native bfloat16 instructions) and decodes ~10 tokens (memory-bound on the weights). One row at a time
+(`--batch 1`, or a run of one episode) runs as `bfloat16-weights` (float32 with packed bfloat16 linear
+weights, `cpu_kernels`): plain bfloat16's attention is slow for one query row.
 `--dtype`, `--batch` given on the command line win.
 """
 
@@ -48,13 +49,26 @@ def native_bf16() -> bool:
     return any(f in flags.split() for f in ("avx512_bf16", "amx_bf16"))
 
 
-def cpu_defaults(model: str, batch: int | None = None) -> CpuSettings:
+def cpu_defaults(model: str, batch: int | None = None, episodes: int | None = None) -> CpuSettings:
     """The measured-fastest settings for a model directory on this CPU (`batch`: the episodes batched, when
-    given). One episode at a time keeps a real model in its own precision: decoding one row in bfloat16
-    measured 2.5x slower than in float32 (SmolLM2-135M's shape, 1 thread: 3.7 against 9.1 tokens/s,
-    issue 29), and a step decodes more than it gains in reading its new turn faster."""
+    given; `episodes`: how many the run has, when known). One row at a time (batch 1, or a run of one
+    episode) runs a real model as `bfloat16-weights` (`cpu_kernels`: float32 with packed bfloat16 linear
+    weights), where the CPU and torch have bfloat16 packing, else in its own precision: decoding one row
+    in plain bfloat16 measured 2.5x slower than in float32 (SmolLM2-135M's shape, 1 thread: 3.7 against
+    9.1 tokens/s, issue 29; torch's bfloat16 attention for one query row is the slow part)."""
+    rows = min(batch or 16, episodes or 16)
     if weight_bytes(model) < LARGE:
         return CpuSettings(threads=1, dtype="auto", batch=batch or 16)
-    bf16 = native_bf16() and batch != 1
-    return CpuSettings(threads=max(1, min(2, os.cpu_count() or 1)), dtype="bfloat16" if bf16 else "auto",
-                       batch=batch or 16)
+    threads = max(1, min(2, os.cpu_count() or 1))
+    if not native_bf16():
+        return CpuSettings(threads=threads, dtype="auto", batch=batch or 16)
+    return CpuSettings(threads=threads, dtype="bfloat16" if rows > 1 else _one_row_dtype(), batch=batch or 16)
+
+
+def _one_row_dtype() -> str:
+    """`bfloat16-weights` where torch packs bfloat16 weights here, else the checkpoint's own."""
+    try:
+        from .cpu_kernels import BF16_WEIGHTS, packing_supported
+    except ImportError:  # no torch: no transformers backend either
+        return "auto"
+    return BF16_WEIGHTS if packing_supported() else "auto"

@@ -35,6 +35,7 @@ import torch
 from transformers import DynamicCache
 from transformers.cache_utils import DynamicLayer
 
+from . import one_row
 from .constrained import unpack_bits
 
 _POOL: list = []
@@ -536,11 +537,27 @@ def _logits(model, head, **kwargs) -> torch.Tensor:
     cache = kwargs.pop("cache")
     if head is None:
         return model(**kwargs, **cache_arg(model, cache), logits_to_keep=1).logits[:, -1].float()
-    h = model.model(**kwargs, **cache_arg(model.model, cache)).last_hidden_state[:, -1]
+    return _head(model, model.model(**kwargs, **cache_arg(model.model, cache)).last_hidden_state[:, -1], head)
+
+
+def _head(model, h: torch.Tensor, head) -> torch.Tensor:
+    """Logits [B, V] (float32) of last hidden states [B, hidden]: every token's (`head` None) or only
+    `head`'s, the others -inf."""
     w = model.get_output_embeddings().weight
+    if head is None:
+        return model.get_output_embeddings()(h).float()
     out = torch.full((h.shape[0], w.shape[0]), float("-inf"), dtype=torch.float32, device=h.device)
     out[:, head] = torch.nn.functional.linear(h, w[head]).float()
     return out
+
+
+def lean(model) -> bool:
+    """Whether one unmasked row's passes go through `one_row.step` (on the CPU, where a pass's fixed
+    costs weigh: a Llama model, `one_row.supported`); decided once per model."""
+    hit = model.__dict__.get("_adapt_lean")
+    if hit is None:
+        hit = model.__dict__["_adapt_lean"] = model.device.type == "cpu" and one_row.supported(model)
+    return hit
 
 
 def _forward(model, cache, mask, new: list, read: list, pad_id: int, head=None) -> tuple:
@@ -550,6 +567,8 @@ def _forward(model, cache, mask, new: list, read: list, pad_id: int, head=None) 
     logits are needed (None: all; `_logits`). Returns (logits [B, V], mask)."""
     width, most = cache.get_seq_length(), max(len(t) for t in new)
     dev = model.device
+    if mask is None and len(new) == 1 and most == 1 and lean(model):  # one row, one token: the lean pass
+        return _head(model, one_row.step(model, cache, new[0][0], read[0]), head), None
     if mask is None and any(len(t) != most for t in new):
         mask = torch.ones((len(new), width), dtype=torch.long, device=cache.layers[0].keys.device)
     if most == 1:

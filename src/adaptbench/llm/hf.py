@@ -28,11 +28,26 @@ from .backend import (
     load_tokenizer,
 )
 from .constrained import GrammarProcessor, Matchers, closing_tokens, ll_tokenizer
+from .cpu_kernels import BF16_WEIGHTS, pack_linears
 from .decode import Picker, Row, Sessions, decode, loop_supported
 from .sampling import RowSampler, SampleProcessor, generator, request_seed, sampling_config
 from .scoring import read_prompt, score_after
 
-DTYPES = {"auto": "auto", "float32": torch.float32, "bfloat16": torch.bfloat16, "float16": torch.float16}
+DTYPES = {"auto": "auto", "float32": torch.float32, "bfloat16": torch.bfloat16, "float16": torch.float16,
+          BF16_WEIGHTS: torch.float32}  # a float32 model whose decoder linear weights are bfloat16 (`cpu_kernels`)
+
+
+def load_model(path: str, dtype: str, device: str):
+    """The model of a directory in `dtype` on `device`, for inference. On a CPU with bfloat16
+    instructions a bfloat16 model's decoder linear layers are packed for oneDNN (the same numbers,
+    faster: `cpu_kernels`), and `bfloat16-weights` loads float32 and packs only those layers' weights
+    in bfloat16."""
+    model = AutoModelForCausalLM.from_pretrained(path, dtype=DTYPES[dtype]).to(device).eval()
+    packed = pack_linears(model, keep_dtype=dtype == BF16_WEIGHTS)
+    if dtype == BF16_WEIGHTS and not packed:
+        raise ValueError(f"--dtype {BF16_WEIGHTS} needs a CPU with bfloat16 instructions and a torch build with "
+                         "oneDNN (use bfloat16 or float32 here)")
+    return model
 
 
 class RowStops(StoppingCriteria):
@@ -85,7 +100,7 @@ class TransformersBackend(Backend):
         self.batch_size, self.temperature, self.seed = batch_size, temperature, seed
         check_device(device)
         self.tokenizer = load_tokenizer(model, padding_side="left")
-        self.model = AutoModelForCausalLM.from_pretrained(model, dtype=DTYPES[dtype]).to(device).eval()
+        self.model = load_model(model, dtype, device)
         self.context = context_limit(self.tokenizer, self.model.config)
         self.vocab = self.model.get_output_embeddings().weight.shape[0]
         self.lltok = ll_tokenizer(self.tokenizer, self.vocab)
@@ -204,21 +219,22 @@ class TransformersBackend(Backend):
 
     def score_dtype(self, dtype: str | None = None) -> str:
         """The precision `score(..., dtype)` runs the model in: `dtype`, or the model's own."""
-        return dtype or str(self.model.dtype).removeprefix("torch.")
+        if dtype:
+            return dtype
+        return BF16_WEIGHTS if self.dtype == BF16_WEIGHTS else str(self.model.dtype).removeprefix("torch.")
 
     def _scorer(self, dtype: str | None):
         """The model to score with: this one, or for another `dtype` the model directory loaded again in
         that precision (the checkpoint's weights, not this model's rounded ones; loaded once and kept: a
         float32 copy beside a bfloat16 model takes twice its memory)."""
-        if dtype is None or DTYPES.get(dtype, dtype) == self.model.dtype:
+        if dtype is None or dtype == self.dtype or (DTYPES.get(dtype, dtype) == self.model.dtype
+                                                    and self.dtype != BF16_WEIGHTS):
             return self.model
         if dtype not in DTYPES or dtype == "auto":
             raise ValueError(f"unknown scoring dtype '{dtype}' (choose from: float32, bfloat16, float16)")
-        kept = self._copy
-        if kept is None or kept.dtype != DTYPES[dtype]:
-            kept = self._copy = AutoModelForCausalLM.from_pretrained(self.path, dtype=DTYPES[dtype]).to(
-                self.device).eval()
-        return kept
+        if self._copy is None or self._copy[0] != dtype:
+            self._copy = (dtype, load_model(self.path, dtype, self.device))
+        return self._copy[1]
 
     @torch.no_grad()
     def score_ids(self, groups, dtype: str | None = None) -> list:
