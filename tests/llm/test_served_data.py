@@ -1,8 +1,7 @@
 """`adapt train data --backend openai`: the student generating and scoring on a served engine gives the
 rows the local backend gives (same prompts, actions, questions, ids; Δq/Δt from the server's prompt
 log-probabilities equal within float tolerance), against the fake OpenAI-compatible server over the shipped
-tiny student (`fake_server.py` answering in vLLM's `prompt_logprobs` form; the student asks, so question
-and teacher rows, the answered prompts and two steps' scores in one batch are all compared); a server that cannot be used is one
+tiny student (`fake_server.py` answering in vLLM's `prompt_logprobs` form; question and teacher rows, the answered prompts and two steps' scores in one batch are all compared); a server that cannot be used is one
 line and exit 2. The same against a real vLLM: `test_vllm.py`."""
 
 from __future__ import annotations
@@ -17,8 +16,11 @@ from .conftest import SKIP_MODELS
 
 pytestmark = SKIP_MODELS
 SCORES = ("p_teacher", "p_teacher_given_answer", "p_student", "delta_q", "delta_t")
-SELECTION = ("--personas", "ron", "--tasks", "eggs", "--split", "1", "--seeds", "100-101", "--max-steps", "3",
-             "--batch", "2")
+# tea and eggs, where the shipped base student (which never learnt to ask) departs from the teacher; questions
+# about the teacher's named preference (`topics`) and ε1 0.1, so that some (Δq up to 0.13 here) make question
+# rows as well as teacher rows
+SELECTION = ("--personas", "ron", "--tasks", "tea_eggs", "--split", "1", "--seeds", "100-101", "--max-steps", "3",
+             "--batch", "2", "--eps1", "0.1", "--questions", "topics")
 
 
 def build(student, out, *extra) -> list:
