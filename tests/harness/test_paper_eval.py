@@ -87,6 +87,21 @@ def test_method_and_split_from_adapt_trains_output_folder(tmp_path):
     assert (rec.agent, rec.split) == ("no-dpo", 1)
 
 
+def test_a_base_student_counts_on_its_split_and_stays_the_baseline(tmp_path):
+    """A base student's student.json (`adapt model curve`, the shipped `--model student`) gives its split:
+    its planner rows are the baseline, in the unseen column only for its split's unseen personas."""
+    base = tmp_path / "base"
+    base.mkdir()
+    (base / "student.json").write_text(json.dumps({"split": "0", "scene_seeds": [100, 101], "teacher": "oracle"}))
+    unseen = {0: ("leila", "lisa", "mark", "samantha")}
+    recs = [Resolver().resolve(_rec("planner", persona=p, agent_config={"model": str(base)}), None)
+            for p in ("leila", "juan")]
+    assert [(r.agent, r.split) for r in recs] == [("planner", 0), ("planner", 0)]
+    from adaptbench.harness.evaluate import split_of
+
+    assert [split_of(r, unseen) for r in recs] == [["unseen"], ["seen"]]
+
+
 def test_tables_show_missing_rows_never_zero_and_the_paper_beside():
     recs = [_rec("never-ask-llm", rate=0.25, questions=0), _rec("never-ask", rate=0.5, questions=0),
             _rec("oracle", rate=1.0, questions=0), _rec("mine", rate=0.75)]

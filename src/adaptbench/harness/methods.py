@@ -8,7 +8,8 @@ A record's METHOD (the label its row shows) is, first match wins:
    as given to the rollout or relative to the results file's folder): `training.json` in it
    (`{"method": "dpo", "split": 1}`, any trainer may write one), else `adapt train`'s output layout,
    where the model is OUT/merged: OUT/train.json's `method`, and the split from OUT/train.json, else
-   OUT/settings.json, else the first pair of the training data (`settings["data"]/pairs.jsonl`);
+   OUT/settings.json, else the first pair of the training data (`settings["data"]/pairs.jsonl`); a base
+   student's `student.json` gives only its split (its rows stay the agent's: `planner` is the baseline);
 4. the agent's name (`planner`, `react`, `oracle`, ...).
 Training method names are normalised (`dpo` -> `reflection-dpo`, `sft` -> `no-dpo`, `stargate` ->
 `star-gate`, ...). A record without its own `split` takes the one given in 1 or found in 3.
@@ -26,6 +27,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 PROVENANCE = "training.json"  # in a trained model's directory: {"method": ..., "split": ..., ...}
+STUDENT_PROVENANCE = "student.json"  # a base student's (`adapt model student`, `adapt model curve`): its split
 TRAIN_OUTPUTS = ("merged", "adapter")  # the model folders of `adapt train`'s OUT, beside OUT/train.json
 
 ALIASES = {"dpo": "reflection-dpo", "reflection_dpo": "reflection-dpo", "reflection-dpo": "reflection-dpo",
@@ -130,10 +132,10 @@ def read_provenance(model: str, bases: tuple = ()) -> dict:
             return _json(path / PROVENANCE)
         if path.name in TRAIN_OUTPUTS and path.is_dir() and (path.parent / "train.json").is_file():
             return _adapt_train(path.parent)
+        if (path / STUDENT_PROVENANCE).is_file():  # a base student: trained on a split, no method of its own
+            info = _json(path / STUDENT_PROVENANCE)
+            return {k: info[k] for k in ("split", "scene_seeds") if info.get(k) is not None}
     return {}
-
-
-STUDENT_PROVENANCE = "student.json"  # `adapt model student`'s record of how the student was built
 
 
 def trained_seeds(model: str, bases: tuple = ()) -> tuple:
