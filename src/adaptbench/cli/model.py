@@ -298,7 +298,8 @@ def _add_student_command(msub) -> None:
                         description="Rolls out oracle-ask (the oracle's plan, asking first where it departs from the "
                                     "defaults) and oracle on the split's training personas x all tasks, builds a tiny "
                                     "model (adapt model init) and pretrains it on those trajectories with TRL's SFT "
-                                    "trainer (adapt model pretrain). The defaults build the shipped checkpoint.")
+                                    "trainer (adapt model pretrain). With --ask-seeds none: a base student on the oracle "
+                                    "alone, like the shipped --model student (which adapt model curve built).")
     add_spec_option(q)
     q.add_argument("--out", required=True, help="directory for the model (data in OUT/data, OUT/student.json)")
     q.add_argument("--split", default=d.split, help=f"split whose unseen personas are left out (default {d.split})")
