@@ -161,7 +161,6 @@ def check_base(base, split: str) -> dict:
     """What the pipeline records of an already trained base student (`--base DIR`): its path, the hash of its
     weights and its student.json. BadBase (one line) when DIR lacks a model, tokenizer or student.json,
     was trained for another split, or on an evaluation scene seed."""
-    import hashlib
 
     from ..harness.seeds import eval_overlap, seeds_text
 
@@ -189,10 +188,9 @@ def check_base(base, split: str) -> dict:
     if bad:
         raise BadBase(f"--base {base}: trained on scene seed(s) {seeds_text(bad)}, which the evaluation uses "
                       f"({seeds_text(EVAL_SEEDS)}): give a base trained on seeds from 100 up")
-    sha = hashlib.sha256()
-    for w in weights:
-        sha.update(w.read_bytes())
-    return {"base": str(d), "weights_sha256": sha.hexdigest(), "student": info}
+    from .pretrain import file_sha256
+
+    return {"base": str(d), "weights_sha256": [file_sha256(w) for w in weights], "student": info}
 
 
 def _settings_seeds(settings: dict) -> list | None:

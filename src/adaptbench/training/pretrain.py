@@ -179,7 +179,8 @@ def _losses(history) -> list:
 RUN_FILE = "pretrain.json"  # in the checkpoint directory: the run's settings, and its result once finished
 
 
-def _sha256(path) -> str:
+def file_sha256(path) -> str:
+    """The SHA-256 of a file's bytes, read in 1 MiB chunks (model weights, data files)."""
     import hashlib
 
     h = hashlib.sha256()
@@ -193,7 +194,7 @@ def run_settings(model_dir, data_paths, steps: int, lr: float, budget, seed: int
     """What makes two pretraining runs the same run: the starting model (its weights' hash), the data
     (each file's hash), updates, learning rate, token budget and seed."""
     weights = sorted(Path(model_dir).glob("*.safetensors"))
-    return {"model": [_sha256(w) for w in weights], "data": [_sha256(p) for p in data_paths], "steps": steps,
+    return {"model": [file_sha256(w) for w in weights], "data": [file_sha256(p) for p in data_paths], "steps": steps,
             "lr": lr, "budget": budget, "seed": seed}
 
 
