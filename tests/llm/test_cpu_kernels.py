@@ -5,10 +5,14 @@ from __future__ import annotations
 
 import pytest
 
-from .conftest import SKIP_MODELS
+from .conftest import MISSING, SKIP_MODELS
 
 
 def _packing() -> bool:
+    """Whether bfloat16 packing is available (False without the models extra: pytest evaluates every
+    skipif condition, so this one must not import torch when the module-level skip applies)."""
+    if MISSING:
+        return False
     from adaptbench.llm.cpu_kernels import packing_supported
 
     return packing_supported()
