@@ -77,7 +77,7 @@ SCALES = {
     # the base recipe measured by `adapt model curve` (docs/training.md): 128x4, 4,000 updates at lr 2e-3 on the
     # oracle's episodes of scene seeds 100-123 (2,304 episodes for a split of 12 training personas)
     "session": Scale("session", hidden=128, layers=4, base_updates=4000, teacher_seeds="100-123", train_personas=0,
-                     tasks=(), pair_seeds="100", max_steps=50, train_steps=150, eval_personas=0, eval_seeds="0-1",
+                     tasks=(), pair_seeds="100", max_steps=50, train_steps=150, eval_personas=0, eval_seeds="0-3",
                      batch=16, base_lr=2e-3),
 }
 
