@@ -115,6 +115,20 @@ def tables(args, records: list, unseen) -> tuple:
             lambda: "\n\n".join([pt.render_markdown(rows, args.paper), *lines]), lines)
 
 
+def paired_text(args, records: list, unseen, markdown_out: bool) -> str | None:
+    """The `--paired METHOD` table (text or Markdown), None without the option; exit 2 when no record is
+    METHOD's."""
+    if not args.paired:
+        return None
+    from ..harness import paired as pr
+
+    methods = sorted({r.agent for r in records})
+    if args.paired not in methods:
+        _fail(f"--paired {args.paired}: no record of that method (methods here: {', '.join(methods)})", 2)
+    rows = pr.paired(records, args.paired, unseen() if any(r.split is not None for r in records) else None)
+    return pr.render_markdown(rows, args.paired) if markdown_out else pr.render_text(rows, args.paired)
+
+
 def figures(args, records: list) -> None:
     """Write the temporal and questions figures asked for."""
     from ..errors import AdaptError
@@ -153,6 +167,10 @@ def add_options(p) -> None:
                         "split 1); repeatable. Without it a record's method is its model's training.json method, "
                         "else its agent (docs/evaluation.md)")
     p.add_argument("--paper", action="store_true", help="print the paper's published numbers beside ours")
+    p.add_argument("--paired", metavar="METHOD",
+                   help="also compare every method with METHOD on the same episodes (split, persona, task, scene "
+                        "seed): the mean per-episode satisfaction difference ± its standard error, e.g. --paired "
+                        "planner for trained models against their base")
     p.add_argument("--pass-k", type=ks, metavar="K[,K...]",
                    help="the k of pass^k (default: 1 and the most scene seeds every method, persona and task has)")
     p.add_argument("--plot-temporal", metavar="PATH",

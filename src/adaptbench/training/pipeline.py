@@ -25,8 +25,8 @@ training personas, scene seeds 0-3 or fewer; everything else trains on scene see
 4. star-gate: the base's own rollouts on training personas, then `adapt train star-gate` on them.
 5. eval: rollouts of the base as planner, never-ask-llm and always-ask-llm, and of each trained model
    (OUT/eval/*.jsonl).
-6. report: `adapt eval` (Table 1/2: OUT/report/tables.md; the oracle's ceiling row is computed by
-   `adapt eval` itself), the temporal figure and the questions figure (OUT/report/*.png).
+6. report: `adapt eval` (Table 1/2 and every method paired with the base planner on the same episodes:
+   OUT/report/tables.md; the oracle's ceiling row is computed by `adapt eval` itself), the temporal figure and the questions figure (OUT/report/*.png).
 
 Before it starts, the pipeline prints its estimate: each stage's seconds from a cost model (`COSTS`:
 seconds per unit of work, measured at smoke scale on 2 shared CPU cores, one torch thread) times its
@@ -247,7 +247,7 @@ def stages(domain, split: str, s: Scale, out: Path, spec=None, base: dict | None
     rep = out / "report"
     files = [str(ev / f"{m}.jsonl") for m in ("base", *METHODS)]
     star = f"star-gate@{split}={ev / 'star-gate.jsonl'}"  # its rollouts' records name no split
-    result.append(Stage("report", (("eval", *files, "--method", star, *spec_args, "--markdown", str(rep / "tables.md"),
+    result.append(Stage("report", (("eval", *files, "--method", star, *spec_args, "--paired", "planner", "--markdown", str(rep / "tables.md"),
                                     "--plot-temporal", str(rep / "temporal.png"),
                                     "--plot-questions", str(rep / "questions.png")),),
                         (("start", 1),)))
