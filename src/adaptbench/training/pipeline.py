@@ -95,12 +95,14 @@ SCALES = {
 # tokens; the learning curve's runs, 2026-11-27), a teacher episode 0.16 s (2,304 oracle episodes in ~6 min in one
 # process); the rest from the shipped student's figures (docs/training.md's session run: 2,942 pair steps in
 # 9 min on 2 workers, DPO 6.1 s/update, ~40 s per 2,560 evaluation steps, all at 20-step prompts), doubled where
-# the cost grows with the prompt (50 steps: prompts ~2.5x longer).
+# the cost grows with the prompt (50 steps: prompts ~2.5x longer). `train_step` measured by issue 28's session runs
+# (2026-11-27, two splits at once, one core each): a DPO update 15-21 s at batch 4 (rank-8 LoRA on every linear
+# layer, prompts of ~2,000 tokens).
 COSTS = {
     "h32-l1": {"start": 10.0, "trainer_start": 25.0, "teacher_episode": 0.3, "update": 1.5, "pair_step": 0.8,
                "train_step": 2.0, "episode_step": 0.35},
     "h128-l4": {"start": 10.0, "trainer_start": 25.0, "teacher_episode": 0.16, "update": 1.0, "pair_step": 0.75,
-                "train_step": 12.0, "episode_step": 0.03},
+                "train_step": 18.0, "episode_step": 0.03},
 }
 
 
