@@ -256,6 +256,19 @@ def test_chain_data_dpo_rollout_on_the_merged_model(tiny, tmp_path):
     _eval_tables_and_figures(tmp_path, runs)
 
 
+def test_dpo_with_the_chosen_nll_term(tiny, tmp_path):
+    """`--loss sigmoid+sft` (RPO): TRL's DPO loss plus the chosen completion's negative log-likelihood, so the
+    first step's loss is log 2 plus that NLL, well above DPO's log 2."""
+    data, out = tmp_path / "data", tmp_path / "rpo"
+    _data(tiny, data)
+    got = _adapt("train", "dpo", "--data", data, "--model", tiny, "--out", out, "--max-steps", 1, "--batch", 1,
+                 "--logging-steps", 1, "--threads", 1, "--loss", "sigmoid+sft")
+    assert got.returncode == 0, got.stderr
+    r = json.loads((out / "train.json").read_text())
+    assert r["first"]["loss"] > 0.6931 + 0.5  # the untrained tiny model's NLL of the chosen action is large
+    assert json.loads((out / "settings.json").read_text())["loss"] == "sigmoid+sft"
+
+
 def _eval_tables_and_figures(tmp_path, runs):
     """The chain's last link: `adapt eval` reads the trained model's provenance (OUT/train.json) and puts its
     records in the Reflection-DPO rows of both tables, with both figures drawn."""

@@ -17,7 +17,7 @@ from pathlib import Path
 
 from ...errors import AdaptError
 
-LOSSES = ("sigmoid", "ipo", "sigmoid_norm")
+LOSSES = ("sigmoid", "ipo", "sigmoid_norm", "sigmoid+sft")
 RELEASE_TARGETS = "q_proj,v_proj"
 
 
@@ -100,8 +100,9 @@ class DPOSettings(TrainSettings):
     reference being the adapter switched off."""
 
     beta: float = setting(0.1, "DPO beta (default 0.1)", float)
-    loss: str = setting("sigmoid", "DPO loss: sigmoid (DPO), ipo, or sigmoid_norm (sigmoid on the per-token "
-                                   "mean log-ratios: length-normalised); all three are TRL loss types",
+    loss: str = setting("sigmoid", "DPO loss: sigmoid (DPO), ipo, sigmoid_norm (sigmoid on the per-token "
+                                   "mean log-ratios: length-normalised), or sigmoid+sft (DPO plus the chosen "
+                                   "completion's negative log-likelihood, weight 1: RPO); all TRL loss types",
                         str, LOSSES)
     precompute_ref: str = setting("auto", "precompute the reference log-probs in one pass before training: "
                                           "yes, no, or auto (yes when the run sees every row at least once, "

@@ -167,7 +167,7 @@ def _build(method: str, s, rows: list, tokenizer, out: Path, log):
             from trl import DPOConfig
 
             pre = precompute(s, len(rows))
-            args = DPOConfig(**common, beta=s.beta, loss_type=[s.loss], precompute_ref_log_probs=pre,
+            args = DPOConfig(**common, beta=s.beta, loss_type=s.loss.split("+"), precompute_ref_log_probs=pre,
                              precompute_ref_batch_size=max(s.batch, 8))
             data = Dataset.from_list([r.preference() for r in rows])
             return _dpo_class()(model=model, args=args, train_dataset=data, processing_class=tokenizer,
