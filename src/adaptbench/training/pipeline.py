@@ -69,6 +69,7 @@ class Scale:
     batch: int = 8
     base_lr: float = 2e-3  # behaviour-cloning learning rate
     trainer_args: tuple = ()  # extra `adapt train M` settings, the same for every method (dpo, ablations, STaR-GATE)
+    dpo_args: tuple = ()  # extra settings of the preference trainers only (dpo, no-reflection)
 
 
 SCALES = {
@@ -80,9 +81,11 @@ SCALES = {
     "session": Scale("session", hidden=128, layers=4, base_updates=4000, teacher_seeds="100-123", train_personas=0,
                      tasks=(), pair_seeds="100", max_steps=50, train_steps=150, eval_personas=0, eval_seeds="0-3",
                      batch=16, base_lr=2e-3,
-                     # the release's LoRA (rank 4 on q_proj, v_proj, lr 1e-4) is sized for a 70B model: on the 1M base
-                     # its DPO margins grew 0.008 in 15 updates against 0.29 with these (docs/training.md)
-                     trainer_args=("--lr", "1e-3", "--lora-targets", "all-linear", "--lora-r", "8", "--lora-alpha", "16")),
+                     # the release's LoRA (rank 4 on q_proj, v_proj, lr 1e-4) is sized for a 70B model and barely moves
+                     # the 1M base; rank 8 on every linear layer at lr 1e-3 collapsed DPO into search loops; at 3e-4 with
+                     # the chosen action's NLL beside the DPO loss it held (docs/training.md, issue 28's first runs)
+                     trainer_args=("--lr", "3e-4", "--lora-targets", "all-linear", "--lora-r", "8", "--lora-alpha", "16"),
+                     dpo_args=("--loss", "sigmoid+sft")),
 }
 
 # Seconds per unit of work, per base-student size. Units: `start` a child process's start (importing torch and
@@ -233,7 +236,8 @@ def stages(domain, split: str, s: Scale, out: Path, spec=None, base: dict | None
                     (("start", 1), ("pair_step", n_pairs * s.max_steps)))]
     for m in METHODS:
         result.append(Stage(m, (("train", m, "--data", str(out / "pairs"), "--model", base, "--out", str(out / m),
-                                 "--max-steps", str(s.train_steps), "--threads", "1", *s.trainer_args),),
+                                 "--max-steps", str(s.train_steps), "--threads", "1", *s.trainer_args,
+                                 *(s.dpo_args if m != "sft" else ())),),
                             (("start", 1), ("trainer_start", 1), ("train_step", s.train_steps))))
     rollouts = str(out / "star-gate" / "rollouts.jsonl")
     result.append(Stage("star-gate", (("rollout", "--agent", "planner", "--model", base, *common, "--personas",
