@@ -115,9 +115,9 @@ def tables(args, records: list, unseen) -> tuple:
             lambda: "\n\n".join([pt.render_markdown(rows, args.paper), *lines]), lines)
 
 
-def paired_text(args, records: list, unseen, markdown_out: bool) -> str | None:
-    """The `--paired METHOD` table (text or Markdown), None without the option; exit 2 when no record is
-    METHOD's."""
+def paired_texts(args, records: list, unseen) -> tuple | None:
+    """The `--paired METHOD` table as (text, Markdown), the pairing computed once; None without the option;
+    exit 2 when no record is METHOD's."""
     if not args.paired:
         return None
     from ..harness import paired as pr
@@ -126,7 +126,7 @@ def paired_text(args, records: list, unseen, markdown_out: bool) -> str | None:
     if args.paired not in methods:
         _fail(f"--paired {args.paired}: no record of that method (methods here: {', '.join(methods)})", 2)
     rows = pr.paired(records, args.paired, unseen() if any(r.split is not None for r in records) else None)
-    return pr.render_markdown(rows, args.paired) if markdown_out else pr.render_text(rows, args.paired)
+    return pr.render_text(rows, args.paired), pr.render_markdown(rows, args.paired)
 
 
 def figures(args, records: list) -> None:

@@ -155,10 +155,10 @@ def _cmd_eval(args) -> int:
     records, ceiling_note = evaluation.with_ceiling(args, records)
     rows, text, csv_text, md_text, lines = _tables(args, records)
     markdown_out = args.markdown == "-"
-    paired = evaluation.paired_text(args, records, _splits(args), markdown_out)  # exit 2 before any table
+    paired = evaluation.paired_texts(args, records, _splits(args))  # exit 2 before any table
     print(md_text() if markdown_out else text)  # the Markdown holds the notes
     if paired:
-        print("\n" + paired)
+        print("\n" + paired[markdown_out])
     none = sum(1 for r in records if r.satisfaction_rate is None)
     if none and not args.by:
         print(f"{none} episode(s) had no applicable preference and are left out of the satisfaction rates")
@@ -171,8 +171,7 @@ def _cmd_eval(args) -> int:
     if args.csv:
         _write_out(args.csv, csv_text() + "\n")
     if args.markdown and not markdown_out:
-        extra = evaluation.paired_text(args, records, _splits(args), True)
-        _write_out(args.markdown, md_text() + ("\n\n" + extra if extra else "") + "\n")
+        _write_out(args.markdown, md_text() + ("\n\n" + paired[1] if paired else "") + "\n")
     return 0
 
 
