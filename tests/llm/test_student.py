@@ -69,6 +69,33 @@ def test_cli_builds_a_student(tmp_path, capsys):
     assert main(["model", "student", "--out", str(out), "--split", "9"]) == 2
 
 
+@pytest.mark.slow
+@SKIP_MODELS
+def test_cli_continues_a_student_from_init(tmp_path, capsys):
+    """`--init` continues from an existing model (its tokenizer and weights: no new tiny model is built),
+    e.g. the shipped base student taught to ask on oracle-ask episodes."""
+    from adaptbench.cli import main
+
+    out = tmp_path / "st"
+    assert main(["model", "student", "--out", str(out), "--init", "student", "--tasks", "cereal", "--ask-seeds", "100",
+                 "--oracle-seeds", "none", "--steps", "1", "--workers", "1", "--quiet"]) == 0
+    info = json.loads((out / "student.json").read_text())
+    from adaptbench.llm.named import named_path
+
+    assert info["settings"]["init"] == str(named_path("student")) and not (out / "init").exists()
+    shipped = json.loads((named_path("student") / "student.json").read_text())
+    assert set(info["scene_seeds"]) == {100, *shipped["scene_seeds"]}  # the init's scenes count as trained on
+    assert (out / "tokenizer.json").read_text() == (named_path("student") / "tokenizer.json").read_text()
+
+
+def test_init_must_be_a_model(tmp_path, capsys):
+    from adaptbench.cli import main
+
+    assert main(["model", "student", "--out", str(tmp_path / "st"), "--init", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert "--init" in err and "config.json" in err and "Traceback" not in err
+
+
 def test_train_commands_take_the_shipped_students_name():
     """`--student student` (adapt train data) and `--model student` (the trainers, GRPO) name the shipped
     checkpoint, as `adapt rollout --model student` does."""

@@ -254,7 +254,7 @@ def _cmd_model_student(args) -> int:
         s = StudentSettings(split=args.split, tasks=tasks, ask_seeds=_seeds_or_none(args.ask_seeds, parse_seeds),
                             oracle_seeds=_seeds_or_none(args.oracle_seeds, parse_seeds), hidden=args.hidden,
                             layers=args.layers, steps=args.steps, lr=args.lr, seed=args.seed, workers=args.workers,
-                            save_every=args.save_every)
+                            save_every=args.save_every, init=_init_model(args.init))
     except ValueError as exc:
         _fail(str(exc))
     if min(args.steps, args.workers, args.save_every) < 1:
@@ -280,6 +280,16 @@ def _cmd_model_student(args) -> int:
           f"updates (loss {r['first_loss']:.2f} -> {r['last_loss']:.2f}); data {sec['data']:.0f} s, training "
           f"{sec['pretrain']:.0f} s (use it with --model {args.out})")
     return 0
+
+
+def _init_model(init: str | None) -> str:
+    """--init as a local model directory ('' when not given); ValueError naming the fix otherwise."""
+    if not init:
+        return ""
+    path = Path(resolve_model(init))
+    if not (path / "config.json").is_file():
+        raise ValueError(f"--init {init}: no model there (a directory with config.json, or a name such as student)")
+    return str(path)
 
 
 def _seeds_or_none(text: str, parse) -> tuple:
@@ -311,6 +321,9 @@ def _add_student_command(msub) -> None:
     q.add_argument("--allow-eval-seeds", action="store_true",
                    help="train on the evaluation scene seeds 0-3 anyway (refused by default: `adapt eval` flags them)")
     q.add_argument("--tasks", default="all", help="'all' (default) or comma-separated task ids")
+    q.add_argument("--init", help="continue from this model (a directory or a shipped name such as student: its "
+                                   "tokenizer and weights; --hidden and --layers then unused), e.g. to teach the base "
+                                   "student to ask")
     q.add_argument("--hidden", type=int, default=d.hidden, help=f"default {d.hidden}")
     q.add_argument("--layers", type=int, default=d.layers, help=f"default {d.layers}")
     q.add_argument("--steps", type=int, default=d.steps, help=f"updates, one packed episode each (default {d.steps})")

@@ -10,7 +10,8 @@ one shipped now (built by `adapt model curve`, docs/training.md):
    evaluation seeds 0-3 (`harness.seeds`; the shipped checkpoint was built before, on seeds 1-6, and
    `adapt eval` flags its episodes on seeds 1-3). Written to OUT/data/*.jsonl (resumable, like `adapt rollout`).
 2. A tiny model built locally (`llm.tiny.init_tiny`: a tokenizer trained on the domain's text, a random
-   Llama from `seed`).
+   Llama from `seed`), or with `init` an existing model to continue from (e.g. the base student, taught
+   to ask on top of what it cooks: `--init models/base --ask-seeds 100-103`).
 3. `training.pretrain.pretrain` (TRL `SFTTrainer`, completion-only loss on the actions, prompts rendered
    with the planner prompt) into OUT, with OUT/student.json saying how it was made.
 
@@ -44,6 +45,7 @@ class StudentSettings:
     workers: int = 2  # rollout processes
     save_every: int = 200  # a resumable checkpoint of the training (OUT/trainer) every this many updates
     tasks: tuple = field(default=())  # empty: every task
+    init: str = ""  # a model directory to continue from (its tokenizer and weights); empty: a new tiny model
 
     def agents(self) -> tuple:
         """(agent, seeds) of the teacher trajectories (an agent with no seeds left out)."""
@@ -83,12 +85,25 @@ def build_student(domain, out, s: StudentSettings = StudentSettings(), log=print
     t0 = time.perf_counter()
     files = teacher_data(domain, s, out, progress)
     t_data = time.perf_counter() - t0
-    base = init_tiny(domain, out / "init", seed=s.seed, vocab_size=s.vocab, hidden=s.hidden, layers=s.layers)
+    base = Path(s.init) if s.init else init_tiny(domain, out / "init", seed=s.seed, vocab_size=s.vocab,
+                                                  hidden=s.hidden, layers=s.layers)
     r = pretrain(domain, base, files, out, steps=s.steps, lr=s.lr, seed=s.seed, log=log, checkpoints=out / "trainer",
                  save_every=s.save_every)
-    info = {"settings": asdict(s), "split": s.split, "teachers": [a for a, _ in s.agents()], "scene_seeds": sorted({*s.ask_seeds, *s.oracle_seeds}), "spec_hash": domain.spec_hash, "data": [str(f.relative_to(out)) for f in files],
+    before = _init_info(s.init)
+    seeds = {*s.ask_seeds, *s.oracle_seeds, *before.get("scene_seeds", ())}
+    info = {"settings": asdict(s), "split": s.split, "teachers": [a for a, _ in s.agents()], "scene_seeds": sorted(seeds),
+            **({"init": before} if s.init else {}), "spec_hash": domain.spec_hash,
+            "data": [str(f.relative_to(out)) for f in files],
             "pretrain": asdict(r), "seconds": {"data": round(t_data, 1), "pretrain": round(r.seconds, 1),
                                                "total": round(time.perf_counter() - t0, 1)},
             "machine": f"{platform.machine()}, torch 1 thread"}
     (out / "student.json").write_text(json.dumps(info, indent=1) + "\n")
     return info
+
+
+def _init_info(init: str) -> dict:
+    """The student.json of the model continued from (its scene seeds count as trained on); {} without one."""
+    try:
+        return json.loads((Path(init) / "student.json").read_text()) if init else {}
+    except (OSError, ValueError):
+        return {}
