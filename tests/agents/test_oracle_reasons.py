@@ -81,3 +81,25 @@ def test_since_reads_the_preference_texts():
     assert since("Ron", "Ron likes vegetables with eggs.") == "Ron likes vegetables with eggs"
     assert since("Sarah", "Prefer oat milk") == "Sarah prefers oat milk"
     assert since("Sarah", "Add cheese to eggs") == 'Sarah prefers this: "Add cheese to eggs"'
+
+
+def test_an_action_that_serves_a_preference_names_oracle_ask_s_question(domain):
+    """`questions`: the choice point's question (the words `oracle-ask` asks it in) for an action whose choice
+    a preference decided; none for a plain step."""
+    steps, _ = _teacher_along_the_oracle(domain, _zed())
+    oat = next(p for a, p in steps if "oat_milk" in a)
+    patio = next(p for a, p in steps if p.preferences == ("patio",))
+    asks = {c.ask for c in domain.planning} | {c.ask for r in domain.recipes for c in r.choices}
+    assert oat.questions and set(oat.questions) <= asks and "milk" in oat.questions[0].lower()
+    assert patio.questions and set(patio.questions) <= asks
+    assert all(p.questions == () for _, p in steps if not p.preferences)
+    oracle_ask = _oracle_ask_questions(domain, _zed())
+    assert oat.questions[0] in oracle_ask and patio.questions[0] in oracle_ask
+
+
+def _oracle_ask_questions(domain, persona, task="toast_coffee", seed=0) -> set:
+    from adaptbench.agents.scripted import play
+    from adaptbench.training.relabel import question_text
+
+    env = Env(domain, task=task, persona=persona, seed=seed, user=OfflineUser(domain, persona, domain.task[task]))
+    return {question_text(t.action) for t in play("oracle-ask", env).view().history if t.action.startswith("Ask")}

@@ -107,16 +107,35 @@ def test_the_plan_keeps_training_off_the_evaluation_seeds_and_personas(domain, t
 
     for scale in SCALES.values():
         plan = stages(domain, "0", scale, tmp_path)
-        assert [s.name for s in plan] == ["base", "pairs", "dpo", "no-reflection", "sft", "star-gate", "eval",
+        assert [s.name for s in plan] == ["base", "eval-base", "pairs", "dpo", "no-reflection", "sft", "star-gate",
                                           "report"]
-        for st in plan[:6]:
-            for cmd in st.commands:
+        training = [c for st in plan for c in st.commands
+                    if "--out" in c and not c[c.index("--out") + 1].startswith(str(tmp_path / "eval"))]
+        assert {c[1] for c in training} >= {"student", "data", "dpo", "no-reflection", "sft", "star-gate", "--agent"}
+        for st in plan:
+            for cmd in (c for c in st.commands if c in training):
                 for flag in ("--seeds", "--oracle-seeds"):
                     if flag in cmd:
                         assert min(parse_seeds(cmd[cmd.index(flag) + 1])) >= 100
                 if "--personas" in cmd:
                     assert set(cmd[cmd.index("--personas") + 1].split(",")).isdisjoint(domain.unseen[0])
+        evaluation = [c for st in plan for c in st.commands if c not in training and c[0] == "rollout"]
+        assert [st.name for st in plan if set(st.commands) & set(evaluation)] == ["eval-base", "dpo", "no-reflection",
+                                                                                   "sft", "star-gate"]
         assert estimate_lines(plan, tmp_path)[0].startswith("estimate: ~")
+
+
+def test_train_steps_sets_every_trainer_s_steps(capsys, tmp_path):
+    from adaptbench.cli import main
+
+    def dpo_estimate(*extra):
+        assert main(["train", "reproduce", "--split", "0", "--out", str(tmp_path / "r"), "--scale", "session",
+                     "--estimate", *extra]) == 0
+        return next(x for x in capsys.readouterr().out.splitlines() if x.split()[0] == "dpo")
+
+    assert dpo_estimate() == "  dpo            ~52 min" and dpo_estimate("--train-steps", "50") == "  dpo            ~22 min"
+    assert main(["train", "reproduce", "--split", "0", "--out", str(tmp_path / "r"), "--train-steps", "0"]) == 2
+    assert "--train-steps must be at least 1" in capsys.readouterr().err
 
 
 def test_an_unknown_split_is_one_line(capsys, tmp_path):

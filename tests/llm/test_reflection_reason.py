@@ -103,3 +103,30 @@ def test_every_preference_question_is_answered_from_its_preference(domain):
             task = next((t for t in domain.tasks if applies_to(domain, pref, t)), None)
             user = OfflineUser(domain, persona, task)
             assert pref.id in user.targets(preference_question(pref)[5:-1]), (persona.id, pref.id)
+
+
+class ChoiceTeacher(NamingTeacher):
+    """NamingTeacher whose second-step proposal also names oracle-ask's question of the choice."""
+
+    def proposals(self, views):
+        """As NamingTeacher's, with the eggs' add-ins question from the second step on."""
+        return [Proposal(p.action, p.preferences, p.reason, (EGGS_ASK,) if p.preferences else ())
+                for p in super().proposals(views)]
+
+
+EGGS_ASK = "What would you like in or on your eggs, such as vegetables or cheese?"
+
+
+@SKIP_MODELS
+def test_choices_proposer_asks_oracle_ask_s_question_else_as_topics(backend, domain, tmp_path):
+    from adaptbench.training.data import Builder, DataSettings
+    from adaptbench.training.relabel import student_policy, topic_question, topics
+
+    settings = DataSettings(0, ("ron",), ("eggs",), (100,), questions="choices", max_length=None, width=1,
+                            max_steps=2)
+    store = PairStore(tmp_path)
+    Builder(domain, student_policy(backend, domain), settings, store, "tiny", teacher=ChoiceTeacher()).run()
+    first, second = sorted(store.rows, key=lambda r: r["step"])
+    assert first["question"] == topic_question(topics(domain), "Look for cheese", domain.task["eggs"].text)
+    assert second["question"] == f'Ask "{EGGS_ASK}"' and second["question_source"] == "choices"
+    assert EGGS_ASK in {c.ask for r in domain.recipes for c in r.choices}

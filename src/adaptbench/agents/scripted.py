@@ -399,14 +399,12 @@ class OraclePolicy(ScriptedPolicy):
         """Carry out the plan found at `start`."""
         return self.executor(view).steps()
 
-    def proposal(self, view: View) -> tuple:
-        """(the plan's next action from the view's state, the ids of the preferences it serves).
+    def next_step(self, view: View) -> tuple:
+        """(the plan's next action from the view's state, the (choice key, value) pairs it realises).
 
         The action: the plan re-executed from the view's known world, passing over each action the
         agent has already taken with success (the same action up to instance numbers and a move's
-        source, `_effect`): what is left of the plan in the state the agent reached.
-        The preferences: those that decided the choices the action realises (`Oracle.reasons`); () for
-        an action that realises no departure from the defaults (a plain cooking step, a default choice)."""
+        source, `_effect`): what is left of the plan in the state the agent reached."""
         ex = self.executor(view)
         done = Counter(_effect(t.action) for t in view.history if t.ok)
         steps, fb = ex.steps(), Feedback(True, "", view.seen)
@@ -417,7 +415,24 @@ class OraclePolicy(ScriptedPolicy):
                 action = steps.send(fb)
         except StopIteration:
             return "Declare Done", ()
-        return action, self.preferences(view.episode, ex.serves)
+        return action, ex.serves
+
+    def proposal(self, view: View) -> tuple:
+        """(the plan's next action from the view's state, the ids of the preferences it serves): those that
+        decided the choices the action realises (`Oracle.reasons`); () for an action that realises no
+        departure from the defaults (a plain cooking step, a default choice)."""
+        action, serves = self.next_step(view)
+        return action, self.preferences(view.episode, serves)
+
+    def questions(self, episode: str, serves) -> tuple:
+        """The questions (each choice point's `ask`, as `oracle-ask` asks them) of the (choice key, value)
+        pairs `serves` that some preference decided: what the student could have asked to know the choice
+        the action realises; () when it serves no preference."""
+        self.preferences(episode, ())  # the plan's reasons, computed once
+        reasons, oracle = self._reasons[episode], self._oracles[episode]
+        points = dict(choice_points(self.domain, all_recipes(self.domain, oracle.task)))
+        return tuple(dict.fromkeys(points[k].ask for k, v in serves
+                                   if reasons.get((k, v)) and k in points and points[k].ask))
 
     def preferences(self, episode: str, serves) -> tuple:
         """The ids of the preferences behind (choice key, value) pairs of an episode's plan, in order."""

@@ -7,6 +7,7 @@ import sys
 
 
 def _cmd_reproduce(args) -> int:
+    from dataclasses import replace
     from pathlib import Path
 
     from ..compiler import load_domain
@@ -22,6 +23,11 @@ def _cmd_reproduce(args) -> int:
               file=sys.stderr)
         return 2
     scale = SCALES[args.scale]
+    if args.train_steps is not None:
+        if args.train_steps < 1:
+            print("adapt: --train-steps must be at least 1", file=sys.stderr)
+            return 2
+        scale = replace(scale, train_steps=args.train_steps)
     try:
         base = check_base(args.base, args.split) if args.base else None
     except BadBase as exc:
@@ -53,9 +59,9 @@ def add_reproduce(train_sub) -> None:
 
     p = train_sub.add_parser("reproduce", help="the whole study in one resumable command: teacher data, base "
                                                 "student, pairs, DPO and ablations, evaluation, tables and figures",
-                             description="Runs teacher data -> base student (oracle behaviour cloning) -> "
-                                         "Reflection-DPO pairs -> dpo, no-reflection, sft, star-gate -> evaluation "
-                                         "rollouts -> Table 1/2 and the temporal and questions figures, each stage "
+                             description="Runs teacher data -> base student (oracle behaviour cloning) -> its "
+                                         "evaluation -> Reflection-DPO pairs -> dpo, no-reflection, sft, star-gate "
+                                         "(each evaluated as soon as it is trained) -> Table 1/2 and the temporal and questions figures, each stage "
                                          "into OUT/<stage>/ with a done-marker. Prints its time estimate first; run "
                                          "again after a kill to resume at the first stage not done.")
     add_spec_option(p)
@@ -68,6 +74,9 @@ def add_reproduce(train_sub) -> None:
                    help="an already trained base student (a model, its tokenizer and student.json, e.g. from adapt "
                         "model student or adapt model curve's OUT/<size>/final) instead of the base stage: it must "
                         "be trained for --split and on no evaluation scene seed (0-3)")
+    p.add_argument("--train-steps", type=int, metavar="N",
+                   help="optimizer steps of every trainer (dpo, no-reflection, sft, star-gate) instead of the "
+                        "scale's (smoke 2, session 150): the same for every method, so the rows stay comparable")
     p.add_argument("--out", required=True, help="output directory (one folder per stage)")
     p.add_argument("--estimate", action="store_true", help="print the estimate and exit")
     p.set_defaults(func=_cmd_reproduce)

@@ -235,8 +235,10 @@ def add_data(train_sub) -> None:
     p.add_argument("--interactions", type=int, default=1, choices=[1, 2], help="interactions per persona, task "
                    "and seed (2: the paper's data, the second with a summary of what the user answered in the "
                    "first as the student's prior knowledge)")
-    p.add_argument("--questions", choices=["student", "topics"], default="student",
-                   help="who proposes the question: the student from the reflection prompt, or the topic proposer")
+    p.add_argument("--questions", choices=["student", "topics", "choices"], default="student",
+                   help="who proposes the question: the student from the reflection prompt (the paper); for a model "
+                        "too small to write one, topics (a question about the preference the teacher named) or "
+                        "choices (oracle-ask's question at the choice a^t realises, else as topics)")
     p.add_argument("--teacher-model", help="an LLM teacher's model directory: the privileged teacher prompt "
                    "(the persona's preferences, the unmet ones reminded each step) proposing a^t under the grammar "
                    "(default: the scripted oracle)")

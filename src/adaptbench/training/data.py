@@ -71,7 +71,7 @@ class DataSettings:
     tasks: tuple
     seeds: tuple = (100,)  # training scenes: never the evaluation seeds 0-3 (harness.seeds)
     interactions: int = 1
-    questions: str = "student"  # or "topics"
+    questions: str = "student"  # or "topics", "choices"
     eps1: float = EPS1
     eps2: float = EPS2
     max_length: int | None = MAX_LENGTH
@@ -243,7 +243,7 @@ class Builder:
 
     def _reflect(self, asks: list) -> list:
         t0 = time.perf_counter()
-        if self.s.questions == "topics":
+        if self.s.questions in ("topics", "choices"):
             out = [self._topic_question(r, v, a_t) for r, v, _, a_t in asks]
         else:
             reqs = [replace(reflection_request(self.student, v, d.action, a_t, tuple(r.made_after), r.proposal.reason),
@@ -253,8 +253,11 @@ class Builder:
         return out
 
     def _topic_question(self, r: _Run, view, a_t: str) -> str:
-        """The topic proposer: a question about the first preference the teacher named, else the topic
+        """The topic proposer: with `choices`, the question of the choice a^t realises (`oracle-ask`'s words);
+        else (or without one) a question about the first preference the teacher named, else the topic
         sharing most words with a^t."""
+        if self.s.questions == "choices" and r.proposal.questions:
+            return f'Ask "{r.proposal.questions[0]}"'
         named = r.proposal.preferences
         if named:
             persona = r.episode.env.persona

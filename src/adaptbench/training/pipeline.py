@@ -20,11 +20,11 @@ training personas, scene seeds 0-3 or fewer; everything else trains on scene see
    student.json, e.g. `adapt model student` or `adapt model curve`'s OUT/<size>/final): checked (trained for
    this split, on no evaluation scene seed), recorded in OUT/base/done.json (path, weights' hash and its
    student.json) and used by every later stage; nothing is trained.
-2. pairs: Reflection-DPO's pairs from the base (`adapt train data`).
-3. dpo, no-reflection, sft: the method and its ablations from the base (`adapt train ...`).
-4. star-gate: the base's own rollouts on training personas, then `adapt train star-gate` on them.
-5. eval: rollouts of the base as planner, never-ask-llm and always-ask-llm, and of each trained model
-   (OUT/eval/*.jsonl).
+2. eval-base: evaluation rollouts of the base as planner, never-ask-llm and always-ask-llm (OUT/eval/base.jsonl).
+3. pairs: Reflection-DPO's pairs from the base (`adapt train data`).
+4. dpo, no-reflection, sft: the method and its ablations from the base (`adapt train ...`), each evaluated
+   (OUT/eval/<method>.jsonl) as soon as it is trained, so a run stopped early still has every row it trained.
+5. star-gate: the base's own rollouts on training personas, `adapt train star-gate` on them, its evaluation.
 6. report: `adapt eval` (Table 1/2 and every method paired with the base planner on the same episodes:
    OUT/report/tables.md; the oracle's ceiling row is computed by `adapt eval` itself), the temporal figure and the questions figure (OUT/report/*.png).
 
@@ -70,6 +70,7 @@ class Scale:
     base_lr: float = 2e-3  # behaviour-cloning learning rate
     trainer_args: tuple = ()  # extra `adapt train M` settings, the same for every method (dpo, ablations, STaR-GATE)
     dpo_args: tuple = ()  # extra settings of the preference trainers only (dpo, no-reflection)
+    pair_args: tuple = ()  # extra `adapt train data` settings (the pairs stage)
 
 
 SCALES = {
@@ -85,7 +86,10 @@ SCALES = {
                      # the 1M base; rank 8 on every linear layer at lr 1e-3 collapsed DPO into search loops; at 3e-4 with
                      # the chosen action's NLL beside the DPO loss it held (docs/training.md, issue 28's first runs)
                      trainer_args=("--lr", "3e-4", "--lora-targets", "all-linear", "--lora-r", "8", "--lora-alpha", "16"),
-                     dpo_args=("--loss", "sigmoid+sft")),
+                     dpo_args=("--loss", "sigmoid+sft"),
+                     # a 1M student cannot write a reflection: the question is oracle-ask's at the choice a^t realises
+                     # (the words a student taught on oracle-ask's episodes asks in; docs/training.md)
+                     pair_args=("--questions", "choices")),
 }
 
 # Seconds per unit of work, per base-student size. Units: `start` a child process's start (importing torch and
@@ -229,31 +233,37 @@ def stages(domain, split: str, s: Scale, out: Path, spec=None, base: dict | None
                              "--layers", str(s.layers), "--steps", str(s.base_updates), "--lr", str(s.base_lr),
                              "--workers", "1", "--quiet"),),
                    (("start", 1), ("teacher_episode", n_teacher), ("update", s.base_updates))))
+    ev = out / "eval"
+    where = [*common, "--personas", ",".join(evalp), "--seeds", s.eval_seeds, "--batch", str(s.batch), "--quiet"]
+    n_steps = n_eval * s.max_steps  # evaluation steps of one agent (at most)
     result = [first,
+              Stage("eval-base", (("rollout", "--agent", ",".join(BASE_AGENTS), "--model", base, *where,
+                                   "--out", str(ev / "base.jsonl")),),
+                    (("start", 1), ("episode_step", len(BASE_AGENTS) * n_steps))),
               Stage("pairs", (("train", "data", *common, "--split", split, "--student", base, "--out",
                                str(out / "pairs"), "--personas", ",".join(trainp), "--seeds", s.pair_seeds,
-                               "--batch", str(s.batch), "--workers", "1"),),
+                               "--batch", str(s.batch), "--workers", "1", *s.pair_args),),
                     (("start", 1), ("pair_step", n_pairs * s.max_steps)))]
+
+    def evaluate(name: str, model) -> tuple:  # a method's evaluation rollouts, run as soon as it is trained
+        return ("rollout", "--agent", "planner", "--model", str(model), *where, "--out", str(ev / f"{name}.jsonl"))
+
     for m in METHODS:
         result.append(Stage(m, (("train", m, "--data", str(out / "pairs"), "--model", base, "--out", str(out / m),
                                  "--max-steps", str(s.train_steps), "--threads", "1", *s.trainer_args,
-                                 *(s.dpo_args if m != "sft" else ())),),
-                            (("start", 1), ("trainer_start", 1), ("train_step", s.train_steps))))
+                                 *(s.dpo_args if m != "sft" else ())), evaluate(m, out / m / "merged")),
+                            (("start", 2), ("trainer_start", 1), ("train_step", s.train_steps),
+                             ("episode_step", n_steps))))
     rollouts = str(out / "star-gate" / "rollouts.jsonl")
     result.append(Stage("star-gate", (("rollout", "--agent", "planner", "--model", base, *common, "--personas",
                                        ",".join(trainp), "--seeds", s.pair_seeds, "--out", rollouts,
                                        "--batch", str(s.batch), "--quiet"),
                                       ("train", "star-gate", *spec_args, "--data", rollouts, "--model", base,
                                        "--out", str(out / "star-gate" / "model"), "--max-steps", str(s.train_steps),
-                                       "--threads", "1", *s.trainer_args)),
-                        (("start", 2), ("trainer_start", 1), ("episode_step", n_pairs * s.max_steps), ("train_step", s.train_steps))))
-    ev = out / "eval"
-    where = [*common, "--personas", ",".join(evalp), "--seeds", s.eval_seeds, "--batch", str(s.batch), "--quiet"]
-    cmds = [("rollout", "--agent", ",".join(BASE_AGENTS), "--model", base, *where, "--out", str(ev / "base.jsonl"))]
-    for m, model in [*((m, out / m / "merged") for m in METHODS), ("star-gate", out / "star-gate" / "model" / "merged")]:
-        cmds.append(("rollout", "--agent", "planner", "--model", str(model), *where, "--out", str(ev / f"{m}.jsonl")))
-    result.append(Stage("eval", tuple(cmds), (("start", len(cmds)),
-                                               ("episode_step", (len(BASE_AGENTS) + 4) * n_eval * s.max_steps))))
+                                       "--threads", "1", *s.trainer_args),
+                                      evaluate("star-gate", out / "star-gate" / "model" / "merged")),
+                        (("start", 3), ("trainer_start", 1), ("episode_step", n_pairs * s.max_steps + n_steps),
+                         ("train_step", s.train_steps))))
     rep = out / "report"
     files = [str(ev / f"{m}.jsonl") for m in ("base", *METHODS)]
     star = f"star-gate@{split}={ev / 'star-gate.jsonl'}"  # its rollouts' records name no split

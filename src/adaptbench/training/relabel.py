@@ -11,6 +11,9 @@
   trajectory) proposing a^t for the student's state under the state's grammar, batched over episodes.
 - `reflection_request`: the reflection prompt (`prompts.reflection_messages`) as a generation under the
   grammar's Ask-only rule: the student proposes the question q.
+- `Proposal.questions` (`--questions choices`): for a model too small to write questions, the question
+  `oracle-ask` asks at the choice a^t realises (the choice a preference decided), in the words a student
+  taught on oracle-ask's episodes asks it.
 - `preference_question`: for a model too small to write questions, a question about the preference the
   teacher named, built from its topics like `adapt users check`'s probes; `topic_question`, when the
   teacher named none: the topic (domain-wide, not the persona's) sharing most words with a^t.
@@ -39,6 +42,7 @@ class Proposal:
     action: str
     preferences: tuple = ()
     reason: str | None = None
+    questions: tuple = ()  # the questions of the choices a^t realises that a preference decided (oracle-ask's)
 
 
 def proposals(teacher, views) -> list:
@@ -67,10 +71,12 @@ class ScriptedTeacher:
     def proposal(self, view) -> Proposal:
         """The teacher's next action from the student's state (Declare Done when the plan is exhausted),
         the preferences it serves and the thought that names them."""
-        action, ids = self.policy.proposal(view)
+        action, serves = self.policy.next_step(view)
+        ids = self.policy.preferences(view.episode, serves)
         persona = self._personas[view.episode]
         prefs = [p for p in persona.preferences if p.id in ids]
-        return Proposal(action, ids, thought(persona.name, prefs, action) if prefs else None)
+        return Proposal(action, ids, thought(persona.name, prefs, action) if prefs else None,
+                        self.policy.questions(view.episode, serves) if ids else ())
 
     def action(self, view) -> str:
         """The teacher's next action from the student's state."""
