@@ -104,11 +104,12 @@ SCALES = {
 # 9 min on 2 workers, DPO 6.1 s/update, ~40 s per 2,560 evaluation steps, all at 20-step prompts), doubled where
 # the cost grows with the prompt (50 steps: prompts ~2.5x longer). `train_step` measured by issue 28's session runs
 # (2026-11-27, two splits at once, one core each): a DPO update 15-21 s at batch 4 (rank-8 LoRA on every linear
-# layer, prompts of ~2,000 tokens).
+# layer, prompts of ~2,000 tokens). `pair_step` measured by the same runs: 1,860 pair steps in 1,137 s with the
+# student's reflections (0.61 s), in ~565 s with `--questions choices` (0.30 s; the session scale's), most of it Δq/Δt scoring.
 COSTS = {
     "h32-l1": {"start": 10.0, "trainer_start": 25.0, "teacher_episode": 0.3, "update": 1.5, "pair_step": 0.8,
                "train_step": 2.0, "episode_step": 0.35},
-    "h128-l4": {"start": 10.0, "trainer_start": 25.0, "teacher_episode": 0.16, "update": 1.0, "pair_step": 0.75,
+    "h128-l4": {"start": 10.0, "trainer_start": 25.0, "teacher_episode": 0.16, "update": 1.0, "pair_step": 0.35,
                 "train_step": 18.0, "episode_step": 0.03},
 }
 
