@@ -164,7 +164,7 @@ def test_the_smoke_pipeline_end_to_end_killed_mid_stage_and_resumed(tmp_path):
     assert r.returncode == 0, r.stderr[-2000:]
     assert r.stderr.splitlines()[0].startswith("estimate: ~") and "stage base: done (skipped)" in r.stderr
     tables = (out / "report" / "tables.md").read_text()
-    for method in ("planner", "reflection-dpo", "no-reflection", "no-dpo", "star-gate", "always-ask-llm"):
+    for method in ("planner", "react", "reflection-dpo", "no-reflection", "no-dpo", "star-gate", "always-ask-llm"):
         assert method in tables
     assert (out / "report" / "temporal.png").stat().st_size > 0 and (out / "report" / "questions.png").is_file()
     info = json.loads((out / "base" / "student.json").read_text())

@@ -20,7 +20,7 @@ training personas, scene seeds 0-3 or fewer; everything else trains on scene see
    student.json, e.g. `adapt model student` or `adapt model curve`'s OUT/<size>/final): checked (trained for
    this split, on no evaluation scene seed), recorded in OUT/base/done.json (path, weights' hash and its
    student.json) and used by every later stage; nothing is trained.
-2. eval-base: evaluation rollouts of the base as planner, never-ask-llm and always-ask-llm (OUT/eval/base.jsonl).
+2. eval-base: evaluation rollouts of the base as planner, react, never-ask-llm and always-ask-llm (OUT/eval/base.jsonl).
 3. pairs: Reflection-DPO's pairs from the base (`adapt train data`).
 4. dpo, no-reflection, sft: the method and its ablations from the base (`adapt train ...`), each evaluated
    (OUT/eval/<method>.jsonl) as soon as it is trained, so a run stopped early still has every row it trained.
@@ -47,7 +47,7 @@ from pathlib import Path
 from ..harness.seeds import EVAL_SEEDS
 
 METHODS = ("dpo", "no-reflection", "sft")
-BASE_AGENTS = ("planner", "never-ask-llm", "always-ask-llm")
+BASE_AGENTS = ("planner", "react", "never-ask-llm", "always-ask-llm")  # the paper's prompted rows of Table 1
 
 
 @dataclass(frozen=True)
