@@ -428,18 +428,21 @@ class OraclePolicy(ScriptedPolicy):
         """The questions (each choice point's `ask`, as `oracle-ask` asks them) of the (choice key, value)
         pairs `serves` that some preference decided: what the student could have asked to know the choice
         the action realises; () when it serves no preference."""
-        self.preferences(episode, ())  # the plan's reasons, computed once
-        reasons, oracle = self._reasons[episode], self._oracles[episode]
-        points = dict(choice_points(self.domain, all_recipes(self.domain, oracle.task)))
+        reasons = self._plan_reasons(episode)
+        points = dict(choice_points(self.domain, all_recipes(self.domain, self._oracles[episode].task)))
         return tuple(dict.fromkeys(points[k].ask for k, v in serves
                                    if reasons.get((k, v)) and k in points and points[k].ask))
 
     def preferences(self, episode: str, serves) -> tuple:
         """The ids of the preferences behind (choice key, value) pairs of an episode's plan, in order."""
-        if episode not in self._reasons:  # computed on first use: rollouts never pay for it
-            self._reasons[episode] = self._oracles[episode].reasons(self._plans[episode])
-        reasons = self._reasons[episode]
+        reasons = self._plan_reasons(episode)
         return tuple(dict.fromkeys(pid for kv in serves for pid in reasons.get(kv, ())))
+
+    def _plan_reasons(self, episode: str) -> dict:
+        """`Oracle.reasons` of the episode's plan, computed on first use (rollouts never pay for it)."""
+        if episode not in self._reasons:
+            self._reasons[episode] = self._oracles[episode].reasons(self._plans[episode])
+        return self._reasons[episode]
 
     def end(self, episode: str) -> None:
         """Forget a finished episode's plan."""
