@@ -154,37 +154,82 @@ def _timed_rollout(domain, backend, n: int, steps: int, batch: int) -> dict:
     return {"steps": done, "wall": wall, "cpu": cpu, "model": model}
 
 
-def steps_per_second(domain, backend, plain, batches, steps: int) -> dict:
+def steps_per_second(domain, backend, plain, batches, steps: int, passes=(None,)) -> dict:
     """Planner steps per second at each batch size b (b episodes of `steps` steps together, offline
-    user), with the share of the wall time spent outside the model and CPU seconds per step; and the
-    plain way, one episode with `model.generate` reading every step's prompt whole (no cache)."""
-    out = {b: _timed_rollout(domain, backend, b, steps, b) for b in batches}
+    user), with the share of the wall time spent outside the model and CPU seconds per step, under
+    each decoding pass (`llm.batch_pass` modes; None: the device's default); and the plain way, one
+    episode with `model.generate` reading every step's prompt whole (no cache)."""
+    from adaptbench.llm import batch_pass
+
+    out = {}
+    for name in passes:
+        if name is not None:
+            batch_pass.set_mode(backend.model, name)
+        out.update({(name, b): _timed_rollout(domain, backend, b, steps, b) for b in batches})
     out["plain"] = _timed_rollout(domain, plain, 1, steps, 1)
     return out
 
 
-def _step_rows(table: dict, batches, steps: int) -> list:
+def profiled(domain, backend, batch: int, steps: int, out: str) -> None:
+    """Profile one rollout of `batch` episodes (torch.profiler, CPU and CUDA where there is one) and
+    write its operators by total time, and the Python functions by cumulative time, to `out`."""
+    import cProfile
+    import io
+    import pstats
+
+    import torch
+    from torch.profiler import ProfilerActivity, profile
+
+    acts = [ProfilerActivity.CPU] + ([ProfilerActivity.CUDA] if torch.cuda.is_available() else [])
+    with profile(activities=acts) as prof:
+        t = _timed_rollout(domain, backend, batch, steps, batch)
+    sort = "cuda_time_total" if torch.cuda.is_available() else "cpu_time_total"
+    text = [f"{t['steps']} steps in {t['wall']:.2f} s (model {t['model']:.2f} s)",
+            prof.key_averages().table(sort_by=sort, row_limit=30)]
+    py = cProfile.Profile()
+    py.enable()
+    _timed_rollout(domain, backend, batch, steps, batch)
+    py.disable()
+    buf = io.StringIO()
+    pstats.Stats(py, stream=buf).sort_stats("cumulative").print_stats(40)
+    Path(out).write_text("\n".join(text) + "\n" + buf.getvalue())
+
+
+def _step_rows(table: dict, batches, steps: int, passes=(None,)) -> list:
     plain = table["plain"]["steps"] / table["plain"]["wall"]
     rows = []
-    for b in batches:
-        t = table[b]
-        rate = t["steps"] / t["wall"]
-        rows += [(f"llm: steps/s, batch {b}", rate, "steps/s", ">= 1000" if b == 64 else "",
-                  f"({b} ep x {steps} steps; {t['cpu'] / t['steps']:.3g} CPU s/step)"),
-                 (f"llm: non-model share, batch {b}", (t["wall"] - t["model"]) / t["wall"], "share", "< 0.05",
-                  "(simulator, user, prompts, grammar: wall time outside generate)"),
-                 (f"llm: batch {b} / model.generate one at a time", rate / plain, "ratio", "", "")]
+    for name in passes:
+        tag = "" if name is None else f"{name}: "
+        for b in batches:
+            t = table[(name, b)]
+            rate = t["steps"] / t["wall"]
+            rows += [(f"llm: {tag}steps/s, batch {b}", rate, "steps/s", ">= 1000" if b == 64 else "",
+                      f"({b} ep x {steps} steps; {t['cpu'] / t['steps']:.3g} CPU s/step)"),
+                     (f"llm: {tag}non-model share, batch {b}", (t["wall"] - t["model"]) / t["wall"], "share",
+                      "< 0.05", "(simulator, user, prompts, grammar: wall time outside generate)"),
+                     (f"llm: {tag}batch {b} / model.generate one at a time", rate / plain, "ratio", "", "")]
+        if 1 in batches and 16 in batches:
+            ratio = (table[(name, 16)]["steps"] / table[(name, 16)]["wall"]) / \
+                (table[(name, 1)]["steps"] / table[(name, 1)]["wall"])
+            rows.append((f"llm: {tag}batched 16 / one at a time", ratio, "ratio", ">= 4", "(GPU target)"))
     rows.append(("llm: steps/s, model.generate one at a time", plain, "steps/s", "", "(no cache between steps)"))
-    if 1 in table and 16 in table:
-        ratio = (table[16]["steps"] / table[16]["wall"]) / (table[1]["steps"] / table[1]["wall"])
-        rows.append(("llm: batched 16 / one at a time", ratio, "ratio", ">= 4", "(GPU target)"))
+    named = [p for p in passes if p not in (None, "hf")]
+    if "hf" in passes:
+        for name in named:
+            for b in batches:
+                ratio = (table[(name, b)]["steps"] / table[(name, b)]["wall"]) / \
+                    (table[("hf", b)]["steps"] / table[("hf", b)]["wall"])
+                rows.append((f"llm: {name} / hf, batch {b}", ratio, "ratio", "", "(decoding pass against the "
+                             "model's forward)"))
     return rows
 
 
 def run(model: str | None, quick: bool, device: str = "cpu", dtype: str = "auto", threads: int | None = None,
-        batches=(1, 16, 64)) -> list:
+        batches=(1, 16, 64), passes=(None,), steps: int | None = None, profile: str | None = None) -> list:
     """Benchmark rows. A real-sized model (100 MB of weights or more, `llm.cpu`) gets a shorter quick run:
-    steps/s at each batch size and decoding at batch 1 (no LLM-user rows)."""
+    steps/s at each batch size and decoding at batch 1 (no LLM-user rows). `passes`: decoding passes
+    to compare (`llm.batch_pass` modes); `steps`: each episode's steps in the steps/s rows; `profile`: a
+    file for the operator profile of one more rollout at the largest batch (`profiled`)."""
     from adaptbench.compiler import load_domain
     from adaptbench.llm.cpu import LARGE, cpu_defaults, weight_bytes
     from adaptbench.llm.hf import TransformersBackend
@@ -202,11 +247,14 @@ def run(model: str | None, quick: bool, device: str = "cpu", dtype: str = "auto"
     plain.loop = False  # model.generate, every step's prompt read whole: what a user would write
     settings = [(f"llm: settings: {device} {dtype}, {torch_threads()} torch threads", weight_bytes(model) / 2**20, "MB",
                  "", f"(model {model})")]
-    n, steps = (8, 5) if quick else (16, 20)
+    n, per = (8, 5) if quick else (16, 20)
     if large:
-        steps = 2 if quick else 6
-    table = steps_per_second(domain, backend, plain, batches, 3 if quick and not large else steps)
-    rows = settings + _step_rows(table, batches, 3 if quick and not large else steps)
+        per = 2 if quick else 6
+    per = steps or (3 if quick and not large else per)
+    table = steps_per_second(domain, backend, plain, batches, per, passes)
+    rows = settings + _step_rows(table, batches, per, passes)
+    if profile:
+        profiled(domain, backend, max(batches), per, profile)
     con1, unc1 = decode_speed(domain, backend, 1, 1 if quick else 3)
     rows += [("llm: constrained decoding tokens/s (batch 1)", con1, "tok/s", ">= 25" if large else "",
               "(prompt reading timed apart)"),
@@ -308,14 +356,19 @@ def main() -> int:
                    "bench/model_shapes.py) into --model DIR, or a temp dir, and measure it")
     p.add_argument("--episode", action="store_true", help="with --model: tokens/s at batch 1 and one 50-step "
                    "planner episode as `adapt rollout` runs it (the CPU defaults for one episode; --dtype overrides)")
-    p.add_argument("--steps", type=int, default=50, help="--episode: the episode's step budget (default 50)")
+    p.add_argument("--steps", type=int, help="--episode: the episode's step budget (default 50); otherwise each "
+                   "episode's steps in the steps/s rows (default: 3 quick, 2 quick for a real-sized model)")
+    p.add_argument("--profile", metavar="FILE", help="also profile one rollout at the largest batch (operators "
+                   "and Python functions) into FILE")
+    p.add_argument("--passes", help="decoding passes to compare in the steps/s rows, e.g. hf,lean,graphs "
+                   "(llm/batch_pass.py; default: the device's own: graphs on a GPU, hf on a CPU)")
     p.add_argument("--settings", action="store_true", help="with --model: steps/s under each backend setting "
                    "(threads, batch, session cache, budget, dtype; bench/llm_settings.py)")
     args = p.parse_args()
     if args.episode:
         if not args.model:
             p.error("--episode needs --model DIR")
-        report(one_row(args.model, args.dtype, args.threads, args.steps, 1 if args.quick else 3))
+        report(one_row(args.model, args.dtype, args.threads, args.steps or 50, 1 if args.quick else 3))
         return 0
     if args.settings:
         from adaptbench.compiler import load_domain
@@ -331,7 +384,9 @@ def main() -> int:
 
         args.model = str(smollm2_shape(load_domain(SPEC), args.model or Path(tempfile.mkdtemp()) / "smollm2"))
     batches = [int(b) for b in args.batches.split(",")]
-    report(run(args.model, args.quick, args.device, args.dtype, args.threads, batches))
+    passes = tuple(args.passes.split(",")) if args.passes else (None,)
+    report(run(args.model, args.quick, args.device, args.dtype, args.threads, batches, passes, args.steps,
+               args.profile))
     return 0
 
 

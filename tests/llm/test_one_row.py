@@ -29,7 +29,7 @@ def test_the_lean_pass_gives_the_forwards_logits_and_cache_bit_for_bit(tiny, dty
     with torch.no_grad():
         for _ in range(2):
             _, layers = decode.prefill(model, decode.Row(list(range(5, 90)), 16), None, room=16)
-            caches.append(decode._cache_of(layers, model.config))
+            caches.append(decode.cache_of(layers, model.config))
         head = torch.arange(0, model.config.vocab_size, 3)
         for k in range(6):
             got = []

@@ -35,8 +35,9 @@ import torch
 from transformers import DynamicCache
 from transformers.cache_utils import DynamicLayer
 
-from . import one_row
+from . import batch_pass, one_row
 from .constrained import unpack_bits
+from .kv_buffer import BufferLayer, cache_of
 
 _POOL: list = []
 os.register_at_fork(after_in_child=_POOL.clear)  # a forked worker has no threads: it starts its own pool
@@ -198,7 +199,7 @@ def prefill(model, row: Row, layers: list | None, room: int = 0):
     else:
         for layer in layers:
             layer.reserve(len(row.prompt) + room)
-    cache = _cache_of(layers, model.config)
+    cache = cache_of(layers, model.config)
     with grouped_heads(model):
         out = model(input_ids=ids, position_ids=pos, use_cache=True, logits_to_keep=1, **cache_arg(model, cache))
     return out.logits[0, -1].float(), layers
@@ -214,6 +215,10 @@ def prefill_many(model, rows: list, layers: list, pad_id: int = 0, room: int = 0
     ids, pos, tail = _right_aligned([r.prompt[r.reused:] for r in rows], cached, pad_id)
     dev = model.device
     mask = torch.cat([mask, tail.to(mask.device)], dim=1)
+    if batch_pass.mode(model) != "hf":
+        bias = batch_pass.attention_bias(mask, most, model.dtype)
+        logits = _head(model, batch_pass.forward(model, cache.layers, ids.to(dev), pos.to(dev), bias), None)
+        return [logits[i] for i in range(len(rows))], cache, mask
     with grouped_heads(model):
         out = model(input_ids=ids.to(dev), attention_mask=mask, position_ids=pos.to(dev), use_cache=True,
                     **cache_arg(model, cache), cache_position=torch.arange(width, width + most, device=dev),
@@ -284,107 +289,6 @@ def prefill_rows(model, rows: list, sessions: Sessions, pad_id: int = 0, togethe
     return out, None
 
 
-GROW = 4  # a buffer that must grow gains at least 1/GROW of its size (amortised: few copies per episode)
-
-
-class BufferLayer(DynamicLayer):
-    """A cache layer whose keys and values live in a buffer [B, heads, capacity, dim] with room to grow:
-    a pass writes its positions in place after the first `n` instead of concatenating (copying) the
-    whole cache, as `DynamicLayer` does every token. `keys`/`values` are views of the first `n`. A
-    layer starts empty (its first update allocates), from a copy of given tensors with `room` more
-    positions, or (`adopt`) on given tensors as its buffer."""
-
-    def __init__(self, keys: torch.Tensor | None = None, values: torch.Tensor | None = None, room: int = 0,
-                 adopt: bool = False):
-        super().__init__()
-        self._k = self._v = None
-        self.n, self.room = 0, room
-        if keys is None:
-            return
-        if adopt:
-            self._k, self._v, self.n = keys, values, keys.shape[2]
-        else:
-            b, h, n, d = keys.shape
-            self._k, self._v = keys.new_empty((b, h, n + room, d)), values.new_empty((b, h, n + room, d))
-            self._k[:, :, :n], self._v[:, :, :n] = keys, values
-            self.n = n
-        self._ready()
-
-    def _ready(self) -> None:
-        self.dtype, self.device, self.is_initialized = self._k.dtype, self._k.device, True
-        self._views()
-
-    def _views(self) -> None:
-        self.keys, self.values = self._k[:, :, :self.n], self._v[:, :, :self.n]
-
-    def reserve(self, total: int) -> None:
-        """Make room for `total` positions (one copy when the buffer is too small, none otherwise)."""
-        if self._k is None or total <= self._k.shape[2]:
-            return
-        size = max(total, self._k.shape[2] + self._k.shape[2] // GROW)
-        k = self._k.new_empty((*self._k.shape[:2], size, self._k.shape[3]))
-        v = self._v.new_empty((*self._v.shape[:2], size, self._v.shape[3]))
-        k[:, :, :self.n], v[:, :, :self.n] = self.keys, self.values
-        self._k, self._v = k, v
-        self._views()
-
-    def truncate(self, n: int) -> None:
-        """Keep the first `n` positions (later writes overwrite the rest)."""
-        self.n = min(n, self.n)
-        self._views()
-
-    def update(self, key_states: torch.Tensor, value_states: torch.Tensor, *args, **kwargs) -> tuple:
-        """Write the new positions after the cached ones; returns the cache so far."""
-        q = key_states.shape[-2]
-        if self._k is None:
-            b, h, _, d = key_states.shape
-            self._k = key_states.new_empty((b, h, q + self.room, d))
-            self._v = value_states.new_empty((b, h, q + self.room, d))
-            self._ready()
-        self.reserve(self.n + q)
-        self._k[:, :, self.n:self.n + q], self._v[:, :, self.n:self.n + q] = key_states, value_states
-        self.n += q
-        self._views()
-        return self.keys, self.values
-
-    def get_seq_length(self) -> int:
-        """Positions cached."""
-        return self.n
-
-    def select(self, rows: torch.Tensor) -> None:
-        """Keep only these batch rows (a copy of the kept rows)."""
-        self._k, self._v = self._k[rows], self._v[rows]
-        self._views()
-
-    def row_parts(self, k: int, cached: int, width: int, new: int) -> BufferLayer:
-        """Row k after a batched prefill: its `cached` positions before `width` and its `new` last ones,
-        as a layer of its own (a copy)."""
-        h, d = self._k.shape[1], self._k.shape[3]
-        out = BufferLayer(self._k.new_empty((1, h, cached + new, d)), self._v.new_empty((1, h, cached + new, d)),
-                          adopt=True)
-        out.n = 0
-        out.update(self.keys[k:k + 1, :, width - cached:width], self.values[k:k + 1, :, width - cached:width])
-        out.update(self.keys[k:k + 1, :, self.n - new:], self.values[k:k + 1, :, self.n - new:])
-        return out
-
-    def row(self, k: int, where: torch.Tensor | None) -> BufferLayer:
-        """Row k's cached positions `where` (its real ones, padding left out; None: all of them), as a
-        layer of its own: a copy, except a batch of one unpadded, which is this layer."""
-        if where is None:
-            if self._k.shape[0] == 1:
-                return self
-            return BufferLayer(self.keys[k:k + 1], self.values[k:k + 1])
-        where = where.to(self.keys.device)
-        return BufferLayer(self.keys[k:k + 1, :, where], self.values[k:k + 1, :, where], adopt=True)
-
-
-def _cache_of(layers: list, config) -> DynamicCache:
-    """A transformers cache whose layers are these `BufferLayer`s."""
-    cache = DynamicCache(config=config)
-    cache.layers = list(layers)
-    return cache
-
-
 def _stack(model, rows_layers: list, lengths: list, room: int) -> tuple:
     """One cache holding the rows' caches left-padded to one width, with `room` positions to grow;
     returns (cache, attention mask [B, W])."""
@@ -402,7 +306,7 @@ def _stack(model, rows_layers: list, lengths: list, room: int) -> tuple:
     mask = torch.zeros((len(lengths), width), dtype=torch.long, device=k0.device)
     for r, n in enumerate(lengths):
         mask[r, width - n:] = 1
-    return _cache_of(layers, model.config), mask
+    return cache_of(layers, model.config), mask
 
 
 def decode(model, rows: list, sessions: Sessions, picker, stopped, pad_id: int = 0, together: bool = True) -> float:
@@ -429,6 +333,9 @@ def decode(model, rows: list, sessions: Sessions, picker, stopped, pad_id: int =
     read = [len(r.prompt) for r in rows]  # each row's tokens in the cache
     logits = torch.stack(first)
     cache, mask = batch if batch is not None else _batch_cache(model, list(layers), read, room)
+    graphs = batch_pass.graphs_of(model, len(rows), max(read) + room)
+    if graphs is not None:
+        cache.layers = graphs.adopt(cache.layers)
     narrow = narrow_head(model)
     slots = list(range(len(rows)))  # the request row in each cache row (None: a stopped row riding along)
     active = list(slots)
@@ -447,7 +354,7 @@ def decode(model, rows: list, sessions: Sessions, picker, stopped, pad_id: int =
             active = [i for i in slots if i is not None]
         new = [rows[i].tokens[read[i] - len(rows[i].prompt):] if i is not None else [pad_id] for i in slots]
         at = [read[i] if i is not None else 0 for i in slots]
-        out, mask = _forward(model, cache, mask, new, at, pad_id, picker.allowed(active) if narrow else None)
+        out, mask = _forward(model, cache, mask, new, at, pad_id, picker.allowed(active) if narrow else None, graphs)
         logits = out if len(active) == len(slots) else out[[k for k, i in enumerate(slots) if i is not None]]
         for i, t in zip(slots, new, strict=True):
             if i is not None:
@@ -460,7 +367,7 @@ def _batch_cache(model, layers: list, read: list, room: int) -> tuple:
     caches left-padded into one buffer; no mask where no row is padded (attention without an explicit
     mask: the fast kernels)."""
     if len(layers) == 1:
-        return _cache_of(layers[0], model.config), None
+        return cache_of(layers[0], model.config), None
     cache, mask = _stack(model, layers, read, room)
     return cache, None if len(set(read)) == 1 else mask
 
@@ -560,15 +467,19 @@ def lean(model) -> bool:
     return hit
 
 
-def _forward(model, cache, mask, new: list, read: list, pad_id: int, head=None) -> tuple:
+def _forward(model, cache, mask, new: list, read: list, pad_id: int, head=None, graphs=None) -> tuple:
     """One decoding pass: each row reads its new tokens (most often one; more when its grammar forced
     some) at its own positions, right-aligned and padded (masked) to the longest. `mask` None: no
     padding so far (it is made when rows read different numbers of tokens). `head`: the token ids whose
-    logits are needed (None: all; `_logits`). Returns (logits [B, V], mask)."""
+    logits are needed (None: all; `_logits`). `graphs`: the model's `batch_pass.DecodeGraphs`, which
+    take one-token passes over the pool the cache lives in. Returns (logits [B, V], mask)."""
     width, most = cache.get_seq_length(), max(len(t) for t in new)
     dev = model.device
     if mask is None and len(new) == 1 and most == 1 and lean(model):  # one row, one token: the lean pass
         return _head(model, one_row.step(model, cache, new[0][0], read[0]), head), None
+    if most == 1 and graphs is not None and graphs.holds(cache.layers):
+        logits = graphs.step(cache.layers, [t[0] for t in new], read, mask)
+        return logits, None if mask is None else torch.cat([mask, mask.new_ones((mask.shape[0], 1))], dim=1)
     if mask is None and any(len(t) != most for t in new):
         mask = torch.ones((len(new), width), dtype=torch.long, device=cache.layers[0].keys.device)
     if most == 1:
@@ -581,6 +492,9 @@ def _forward(model, cache, mask, new: list, read: list, pad_id: int, head=None) 
         ids, pos = ids.to(dev), pos.to(dev)
         if mask is not None:
             mask = torch.cat([mask, tail.to(mask.device)], dim=1)
+    if batch_pass.mode(model) != "hf":
+        bias = None if mask is None else batch_pass.attention_bias(mask, most, model.dtype)
+        return _head(model, batch_pass.forward(model, cache.layers, ids, pos, bias), head), mask
     with grouped_heads(model) if most > 1 else nullcontext():
         logits = _logits(model, head, input_ids=ids, attention_mask=mask, position_ids=pos, use_cache=True,
                          cache=cache, cache_position=torch.arange(width, width + most, device=dev))

@@ -1,0 +1,31 @@
+#!/usr/bin/env bash
+# The language-model side's GPU figures in one run (docs/llm.md, "On a GPU"): the GPU passes' tests on
+# CUDA, then bench_llm.py with SmolLM2-135M's shape (random weights, bf16) comparing the model's forward
+# (hf), the lean batched pass (lean) and the lean pass with CUDA graphs (graphs), with an operator
+# profile of the graphs pass at batch 64.
+#
+#     bash bench/gpu_run.sh [OUT_DIR]     # default: $OUT, else gpu-out/
+#
+# On a machine without the project installed, wheels of what it lacks in .whl/ are installed to
+# /tmp/site first (shared/notes/gpu.md lists them); STEPS sets each episode's steps (default 8).
+set -u
+out=${1:-${OUT:-gpu-out}}
+mkdir -p "$out"
+if [ -d .whl ]; then
+  python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade --target /tmp/site .whl/*.whl \
+    || exit 1
+  export PYTHONPATH=/tmp/site:${PYTHONPATH:-}
+fi
+export PYTHONPATH=$PWD/src:${PYTHONPATH:-} PYTHONUNBUFFERED=1 TOKENIZERS_PARALLELISM=true
+{ nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv,noheader
+  python3 -c "import torch, transformers, llguidance; print('torch', torch.__version__, 'transformers', transformers.__version__, 'llguidance', llguidance.__version__)"
+  nproc; } 2>&1 | tee "$out/machine.txt"
+start=$(date +%s)
+ADAPT_TEST_DEVICE=cuda timeout 150 python3 -m pytest -q -p no:cacheprovider tests/llm/test_batch_pass.py 2>&1 \
+  | tail -4 | tee "$out/tests.txt"
+echo "tests: $(( $(date +%s) - start )) s" | tee -a "$out/tests.txt"
+start=$(date +%s)
+timeout "${BENCH_LIMIT:-420}" python3 bench/bench_llm.py --shape smollm2 --model /tmp/smol --device cuda --dtype bfloat16 \
+  --quick --passes hf,lean,graphs --steps "${STEPS:-8}" --profile "$out/profile.txt" 2>&1 \
+  | grep -v "Loading weights\|Writing model" | tee "$out/bench.txt"
+echo "bench: $(( $(date +%s) - start )) s (whole process)" | tee -a "$out/bench.txt"

@@ -1,0 +1,334 @@
+"""Batched passes of a Llama model for the GPU, without transformers' per-call machinery, and CUDA graphs
+of the one-token pass.
+
+    if batch_pass.mode(model) != "hf":
+        hidden = batch_pass.forward(model, layers, ids, pos, bias)      # [B, hidden], last position
+    graphs = batch_pass.graphs_of(model)                                # "graphs" mode: CUDA graphs
+    logits = graphs.step(cache, tokens, positions, mask)                # one token per row
+
+The first GPU run (issue 29) found the 135M shape's batched pass at ~75 ms on an H200, where its
+weights and cache take under 1 ms to read. Two costs made it: transformers' attention with a padding
+mask cannot hand grouped key/value heads to SDPA on CUDA, so it copies every layer's whole cache to
+repeat them (`repeat_kv`) each pass; and the forward's plumbing (mask construction, keyword routing,
+output objects, ~40 kernel launches a layer) costs milliseconds of CPU per pass while the GPU waits.
+
+`forward` runs the same modules' weights in the same order with three changes: the query heads that
+share a key/value head are folded into the query length (a query [B, heads, L, d] is read as
+[B, kv heads, groups x L, d]: SDPA then needs no repeated cache and serves masks with its
+memory-efficient kernel); one additive mask per pass (`attention_bias`), shared by every layer; and the
+query/key/value and gate/up projections stacked (`Stacked`: two products where there were five). Its
+hidden states equal the model forward's up to rounding (tested on the CPU in float32).
+
+`DecodeGraphs` keeps one key/value pool per model ([rows, kv heads, capacity, d] per layer, allocated
+once) that a decode call's batch cache lives in, and captures the one-token pass for each (rows,
+length) bucket once: rows and length rounded up to a power of two, the rows past the batch reading
+nothing, the positions past a row's cache masked. A replay launches the whole pass at once (one CPU
+call for ~1,000 kernels). Passes over several tokens (a row's forced tokens) run `forward` on the same
+pool.
+"""
+
+from __future__ import annotations
+
+import os
+
+import torch
+import torch.nn.functional as F
+
+from . import one_row
+from .kv_buffer import BufferLayer
+
+MODES = ("hf", "lean", "graphs")  # the model's forward; `forward`; `forward` plus CUDA graphs of one-token passes
+MODE_ENV = "ADAPT_DECODE_PASS"  # overrides the device's default (for tests and benchmarks)
+
+
+def default_mode(model) -> str:
+    """`graphs` on a GPU for a Llama model whose attention runs on SDPA, `hf` otherwise (the CPU has
+    its own fast paths: `one_row`, `cpu_kernels`); ADAPT_DECODE_PASS overrides where the model allows
+    (`graphs` off CUDA keeps the pool and runs its passes eagerly: how the CPU tests check them)."""
+    want = os.environ.get(MODE_ENV)
+    if not one_row.supported(model):
+        return "hf"
+    if want in MODES:
+        return want
+    return "graphs" if model.device.type == "cuda" else "hf"
+
+
+def mode(model) -> str:
+    """The model's decoding pass (`MODES`), decided once per model (`set_mode` changes it)."""
+    hit = model.__dict__.get("_adapt_pass")
+    if hit is None:
+        hit = model.__dict__["_adapt_pass"] = default_mode(model)
+    return hit
+
+
+def set_mode(model, name: str) -> None:
+    """Use this decoding pass for the model from now on (`graphs` off CUDA: the pool, passes run eagerly)."""
+    if name not in MODES:
+        raise ValueError(f"unknown decoding pass '{name}' (choose from: {', '.join(MODES)})")
+    if name != "hf" and not one_row.supported(model):
+        name = "hf"
+    model.__dict__["_adapt_pass"] = name
+
+
+class Stacked:
+    """A layer's query/key/value and gate/up weights stacked into one product each (biases too, where
+    the model has them)."""
+
+    def __init__(self, layer):
+        attn, mlp = layer.self_attn, layer.mlp
+        qkv = (attn.q_proj, attn.k_proj, attn.v_proj)
+        self.qkv_w = torch.cat([m.weight for m in qkv])
+        self.qkv_b = None if qkv[0].bias is None else torch.cat([m.bias for m in qkv])
+        self.split = [m.out_features for m in qkv]
+        gu = (mlp.gate_proj, mlp.up_proj)
+        self.gu_w = torch.cat([m.weight for m in gu])
+        self.gu_b = None if gu[0].bias is None else torch.cat([m.bias for m in gu])
+
+
+def stacked(model) -> list:
+    """The model's `Stacked` weights per layer (made once, kept on the model)."""
+    hit = model.__dict__.get("_adapt_stacked")
+    if hit is None:
+        with torch.no_grad():
+            hit = model.__dict__["_adapt_stacked"] = [Stacked(layer) for layer in model.model.layers]
+    return hit
+
+
+def _norm(module, x: torch.Tensor) -> torch.Tensor:
+    """LlamaRMSNorm, as the module computes it (float32 statistics, rounded back, then the weight)."""
+    dtype = x.dtype
+    x = x.float()
+    x = x * torch.rsqrt(x.pow(2).mean(-1, keepdim=True) + module.variance_epsilon)
+    return module.weight * x.to(dtype)
+
+
+def attention_bias(mask: torch.Tensor, new: int, dtype) -> torch.Tensor:
+    """The additive attention mask [B, 1, new, T] of a pass over `new` tokens per row: `mask` [B, T]
+    (1: a real position; the last `new` columns are the pass's own tokens) and causal among the new
+    ones; 0 where allowed, the dtype's minimum elsewhere. Stored in a buffer whose rows are a multiple
+    of 16 elements wide (SDPA's memory-efficient kernel copies a mask that is not)."""
+    b, t = mask.shape
+    keys = mask.bool()[:, None, :].expand(b, new, t)
+    causal = torch.ones((new, t), dtype=torch.bool, device=mask.device).tril(t - new)
+    allowed = keys & causal
+    out = torch.empty((b, 1, new, -(-t // 16) * 16), dtype=dtype, device=mask.device)[..., :t]
+    out.copy_(torch.where(allowed, 0.0, torch.finfo(dtype).min).unsqueeze(1))
+    return out
+
+
+def _attend(attn, q: torch.Tensor, k: torch.Tensor, v: torch.Tensor, bias) -> torch.Tensor:
+    """SDPA with the query heads that share a key/value head folded into the query length: q [B, H, L,
+    d], k and v [B, Hkv, T, d], bias [B, 1, L, T] or None; returns [B, L, H * d]."""
+    b, h, n, d = q.shape
+    kv = k.shape[1]
+    groups = h // kv
+    q = q.reshape(b, kv, groups * n, d)
+    if bias is not None and groups > 1 and n > 1:
+        bias = bias.repeat(1, 1, groups, 1)
+    o = F.scaled_dot_product_attention(q, k, v, attn_mask=bias, dropout_p=0.0, scale=attn.scaling)
+    return o.reshape(b, h, n, d).transpose(1, 2).reshape(b, n, h * d)
+
+
+def _layer(layer, w: Stacked, h: torch.Tensor, cos, sin, write, bias) -> torch.Tensor:
+    """One decoder layer over h [B, L, hidden]; `write(k, v)` stores the new keys and values and returns
+    the keys and values to attend to."""
+    from transformers.models.llama.modeling_llama import apply_rotary_pos_emb
+
+    attn, mlp = layer.self_attn, layer.mlp
+    b, n, _ = h.shape
+    qkv = F.linear(_norm(layer.input_layernorm, h), w.qkv_w, w.qkv_b).split(w.split, dim=-1)
+    q, k, v = (x.view(b, n, -1, attn.head_dim).transpose(1, 2) for x in qkv)
+    q, k = apply_rotary_pos_emb(q, k, cos, sin)
+    k, v = write(k, v)
+    h = h + attn.o_proj(_attend(attn, q, k, v, bias))
+    gate, up = F.linear(_norm(layer.post_attention_layernorm, h), w.gu_w, w.gu_b).chunk(2, dim=-1)
+    return h + mlp.down_proj(mlp.act_fn(gate) * up)
+
+
+def forward(model, layers: list, ids: torch.Tensor, pos: torch.Tensor, bias) -> torch.Tensor:
+    """One pass over ids [B, L] at positions pos [B, L], the new keys and values written into `layers`
+    (`kv_buffer.BufferLayer`s, in place); `bias`: `attention_bias` (None: every cached position is real
+    and L is 1). Returns the last position's hidden state after the final norm [B, hidden]."""
+    inner = model.model
+    h = inner.embed_tokens(ids)
+    cos, sin = inner.rotary_emb(h, pos)
+    if bias is None and ids.shape[1] > 1:
+        t = layers[0].get_seq_length() + ids.shape[1]
+        bias = attention_bias(torch.ones((ids.shape[0], t), dtype=torch.long, device=ids.device), ids.shape[1],
+                              h.dtype)
+    for layer, w, kv in zip(inner.layers, stacked(model), layers, strict=True):
+        h = _layer(layer, w, h, cos, sin, kv.update, bias)
+    return _norm(inner.norm, h)[:, -1]
+
+
+ROWS_MIN, LENGTH_MIN = 1, 256  # the smallest buckets
+
+
+def bucket(n: int, least: int) -> int:
+    """The power of two at least `n` and `least`."""
+    return max(least, 1 << max(0, n - 1).bit_length())
+
+
+class DecodeGraphs:
+    """A model's key/value pool and its captured one-token passes (see the module's docstring). `rows`
+    and `capacity` (positions) size the pool; a batch that does not fit decodes on its own buffers
+    through `forward`. Off CUDA the passes run eagerly (the same arithmetic: how the CPU tests check it)."""
+
+    def __init__(self, model, rows: int, capacity: int):
+        self.model, self.rows, self.capacity = model, rows, capacity
+        cfg, dev, dtype = model.config, model.device, model.dtype
+        heads = cfg.num_key_value_heads or cfg.num_attention_heads
+        dim = getattr(cfg, "head_dim", None) or cfg.hidden_size // cfg.num_attention_heads
+        shape = (rows, heads, capacity, dim)
+        self.k = [torch.zeros(shape, dtype=dtype, device=dev) for _ in model.model.layers]
+        self.v = [torch.zeros(shape, dtype=dtype, device=dev) for _ in model.model.layers]
+        self.ids = torch.zeros((rows, 1), dtype=torch.long, device=dev)
+        self.pos = torch.zeros((rows, 1), dtype=torch.long, device=dev)
+        self.col = torch.zeros((1,), dtype=torch.long, device=dev)
+        self.bias = torch.full((rows, 1, 1, capacity), torch.finfo(dtype).min, dtype=dtype, device=dev)
+        self.out: dict = {}  # (rows, length) -> logits [rows, V] the graph writes
+        self.graphs: dict = {}  # (rows, length) -> torch.cuda.CUDAGraph
+        self.pool = torch.cuda.graph_pool_handle() if dev.type == "cuda" else None
+        self.captures = 0
+
+    def fits(self, rows: int, positions: int) -> bool:
+        """Whether a batch of `rows` rows with `positions` positions each fits the pool."""
+        return rows <= self.rows and positions <= self.capacity
+
+    def adopt(self, layers: list) -> list:
+        """The batch cache's layers moved into the pool: `PoolLayer`s over its first rows (one copy)."""
+        out = []
+        for layer, pk, pv in zip(layers, self.k, self.v, strict=True):
+            b, n = layer.keys.shape[0], layer.get_seq_length()
+            pk[:b, :, :n] = layer.keys
+            pv[:b, :, :n] = layer.values
+            out.append(PoolLayer(pk, pv, b, n))
+        return out
+
+    def holds(self, layers: list) -> bool:
+        """Whether these layers are this pool's (still: a layer that outgrew it left)."""
+        return all(isinstance(x, PoolLayer) and x.pooled(pk) for x, pk in zip(layers, self.k, strict=True))
+
+    def step(self, layers: list, tokens: list, positions: list, mask) -> torch.Tensor:
+        """One token per row (rows of the pool's layers), each at its position; `mask` [B, n] of the
+        cached positions (None: all real). Returns logits [B, V] (float32; a view valid until the next
+        step)."""
+        b, n = len(tokens), layers[0].get_seq_length()
+        key = (min(bucket(b, ROWS_MIN), self.rows), min(bucket(n + 1, LENGTH_MIN), self.capacity))
+        self._inputs(key, tokens, positions, mask, n)
+        if key not in self.out:
+            self._capture(key)
+        elif self.pool is not None:
+            self.graphs[key].replay()
+        else:
+            self.out[key] = self._pass(*key)
+        for layer in layers:
+            layer.grew(1)
+        return self.out[key][:b]
+
+    def _inputs(self, key, tokens: list, positions: list, mask, n: int) -> None:
+        rows, length = key
+        b, dev = len(tokens), self.ids.device
+        self.ids[:b, 0] = torch.tensor(tokens, dtype=torch.long).to(dev, non_blocking=True)
+        self.pos[:b, 0] = torch.tensor(positions, dtype=torch.long).to(dev, non_blocking=True)
+        self.ids[b:rows] = 0
+        self.pos[b:rows] = 0
+        self.col.fill_(n)
+        low = torch.finfo(self.bias.dtype).min
+        bias = self.bias[:rows, 0, 0, :length]
+        bias.fill_(low)
+        if mask is None:
+            bias[:b, :n + 1] = 0
+        else:
+            bias[:b, :n] = torch.where(mask[:, :n].to(dev).bool(), 0.0, low)
+            bias[:b, n] = 0
+
+    def _pass(self, rows: int, length: int) -> torch.Tensor:
+        """The one-token pass over the pool's first `rows` rows attending to `length` positions."""
+        model, inner = self.model, self.model.model
+        h = inner.embed_tokens(self.ids[:rows])
+        cos, sin = inner.rotary_emb(h, self.pos[:rows])
+        bias = self.bias[:rows, :, :, :length]
+        for layer, w, pk, pv in zip(inner.layers, stacked(model), self.k, self.v, strict=True):
+            h = _layer(layer, w, h, cos, sin, _writer(pk[:rows], pv[:rows], self.col, length), bias)
+        return model.get_output_embeddings()(_norm(inner.norm, h)[:, -1]).float()
+
+    def _capture(self, key) -> None:
+        """Run the pass for this bucket (its output is this step's) and, on CUDA, capture it for replay."""
+        if self.pool is None:
+            self.out[key] = self._pass(*key)
+            return
+        stream = torch.cuda.Stream()
+        stream.wait_stream(torch.cuda.current_stream())
+        with torch.cuda.stream(stream):
+            self._pass(*key)  # warm-up on a side stream, as capture asks (writes the same cache column)
+        torch.cuda.current_stream().wait_stream(stream)
+        graph = torch.cuda.CUDAGraph()
+        with torch.cuda.graph(graph, pool=self.pool, capture_error_mode="thread_local"):
+            self.out[key] = self._pass(*key)
+        graph.replay()
+        self.graphs[key] = graph
+        self.captures += 1
+
+
+def _writer(pk: torch.Tensor, pv: torch.Tensor, col: torch.Tensor, length: int):
+    def write(k, v):
+        pk.index_copy_(2, col, k)
+        pv.index_copy_(2, col, v)
+        return pk[:, :, :length], pv[:, :, :length]
+
+    return write
+
+
+def graphs_of(model, rows: int, positions: int) -> DecodeGraphs | None:
+    """The model's `DecodeGraphs` sized for at least `rows` rows of `positions` positions (made, or
+    remade larger, here: a new pool drops the old one's graphs), or None when the model does not
+    decode through graphs."""
+    if mode(model) != "graphs":
+        return None
+    have = model.__dict__.get("_adapt_graphs")
+    if have is not None and have.fits(rows, positions):
+        return have
+    rows = max(bucket(rows, ROWS_MIN), have.rows if have else 0)
+    capacity = max(bucket(positions, 1024), have.capacity if have else 0)
+    model.__dict__["_adapt_graphs"] = None  # the old pool is freed before the new one is allocated
+    made = model.__dict__["_adapt_graphs"] = DecodeGraphs(model, rows, capacity)
+    return made
+
+
+class PoolLayer(BufferLayer):
+    """A batch cache layer whose buffer is the first `rows` rows of a `DecodeGraphs` pool (written in
+    place by graph replays and by `forward`); copies out what a session keeps, and compacts in place."""
+
+    def __init__(self, pk: torch.Tensor, pv: torch.Tensor, rows: int, n: int):
+        super().__init__(pk[:rows], pv[:rows], adopt=True)
+        self._pk, self._pv = pk, pv
+        self.n = n
+        self._views()
+
+    def pooled(self, pk: torch.Tensor) -> bool:
+        """Whether this layer still lives in that pool."""
+        return self._pk is pk and self._k.data_ptr() == pk.data_ptr()
+
+    def grew(self, q: int) -> None:
+        """A graph replay wrote `q` more positions."""
+        self.n += q
+        self._views()
+
+    def select(self, rows: torch.Tensor) -> None:
+        """Keep only these batch rows, moved to the pool's first rows."""
+        if not self.pooled(self._pk):
+            return super().select(rows)
+        k, v = self._k[rows], self._v[rows]
+        self._pk[:len(rows)] = k
+        self._pv[:len(rows)] = v
+        self._k, self._v = self._pk[:len(rows)], self._pv[:len(rows)]
+        self._views()
+        return None
+
+    def row(self, k: int, where):
+        """Row k's cached positions as a layer of its own: always a copy (the pool is reused)."""
+        if where is None:
+            return BufferLayer(self.keys[k:k + 1], self.values[k:k + 1])
+        where = where.to(self.keys.device)
+        return BufferLayer(self.keys[k:k + 1, :, where], self.values[k:k + 1, :, where], adopt=True)

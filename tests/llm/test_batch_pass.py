@@ -1,0 +1,111 @@
+"""The GPU's decoding passes (`llm.batch_pass`), checked on the CPU: the lean batched pass equals the
+model's forward (padding, a cache, several new tokens, grouped heads), and rollouts through it and
+through the key/value pool of the graphed one-token pass (run eagerly off CUDA) take the same actions
+as the model's forward, with sessions keeping copies, never the pool."""
+
+from __future__ import annotations
+
+import os
+
+import pytest
+
+from .conftest import SKIP_MODELS
+from .test_decode import _actions, _sharp
+
+pytestmark = [SKIP_MODELS]
+DEVICE = os.environ.get("ADAPT_TEST_DEVICE", "cpu")  # cuda: the same checks on a GPU, graphs captured
+
+
+def test_the_lean_pass_equals_the_model_forward_over_padding_a_cache_and_grouped_heads(tiny):
+    """Three rows, left padding in the cache and padding among the new tokens: the last position's
+    logits through `forward` (heads folded, one additive mask, stacked projections) equal the model's."""
+    import torch
+    from transformers import DynamicCache
+
+    from adaptbench.llm.batch_pass import attention_bias, forward
+    from adaptbench.llm.decode import _head, cache_arg
+    from adaptbench.llm.kv_buffer import BufferLayer
+
+    model = _sharp(tiny, device=DEVICE).model
+    assert model.config.num_key_value_heads < model.config.num_attention_heads
+    g = torch.Generator().manual_seed(0)
+    ids = torch.randint(0, 3000, (3, 40), generator=g)
+    mask = torch.ones(3, 40, dtype=torch.long)
+    mask[1, :8], mask[2, 30:33] = 0, 0
+    pos = (mask.cumsum(-1) - 1).clamp(min=0)
+    ids, mask, pos = ids.to(DEVICE), mask.to(DEVICE), pos.to(DEVICE)
+    with torch.no_grad():
+        cache = DynamicCache(config=model.config)
+        model(input_ids=ids[:, :30], attention_mask=mask[:, :30], position_ids=pos[:, :30], **cache_arg(model, cache))
+        want = model(input_ids=ids[:, 30:], attention_mask=mask, position_ids=pos[:, 30:],
+                     cache_position=torch.arange(30, 40, device=DEVICE), **cache_arg(model, cache)).logits[:, -1]
+        layers = [BufferLayer(room=10) for _ in model.model.layers]
+        forward(model, layers, ids[:, :30], pos[:, :30], attention_bias(mask[:, :30], 30, model.dtype))
+        hidden = forward(model, layers, ids[:, 30:], pos[:, 30:], attention_bias(mask, 10, model.dtype))
+        got = _head(model, hidden, None)
+    assert torch.allclose(got, want, atol=1e-4)
+
+
+def test_the_attention_bias_is_causal_among_new_tokens_and_hides_padding():
+    """0 where a query may look (a real cached position, or a new token not after it), the minimum
+    elsewhere; rows 16-element aligned in memory."""
+    import torch
+
+    from adaptbench.llm.batch_pass import attention_bias
+
+    mask = torch.tensor([[0, 1, 1, 1, 1], [1, 1, 1, 0, 1]])
+    bias = attention_bias(mask, 2, torch.float32)
+    allowed = (bias == 0)[:, 0]
+    assert allowed[0].tolist() == [[False, True, True, True, False], [False, True, True, True, True]]
+    assert allowed[1].tolist() == [[True, True, True, False, False], [True, True, True, False, True]]
+    assert bias.stride(2) % 16 == 0
+
+
+@pytest.mark.parametrize("mode", ["lean", "graphs"])
+@pytest.mark.parametrize("batch,ride", [(1, False), (5, True), (5, False)])
+def test_rollouts_through_the_gpu_passes_act_as_the_model_forward_does(domain, tiny, mode, batch, ride, monkeypatch):
+    """Planner rollouts (greedy, under the grammar; one row, several with stopped rows riding and with
+    compaction) take the same actions through the lean pass and through the pool's one-token pass as
+    through the model's forward; the pool's passes did run."""
+    from adaptbench.llm import batch_pass, decode
+
+    if ride:
+        monkeypatch.setattr(decode, "COMPACT_BYTES", 0)
+    ours, plain = _sharp(tiny, device=DEVICE), _sharp(tiny, device=DEVICE)
+    batch_pass.set_mode(ours.model, mode)
+    ours.model.__dict__["_adapt_lean"] = False  # the CPU's one-row pass would take single rows first
+    batch_pass.set_mode(plain.model, "hf")
+    steps = []
+    real = batch_pass.DecodeGraphs.step
+
+    def counted(self, *args):
+        steps.append(len(args[1]))
+        return real(self, *args)
+
+    monkeypatch.setattr(batch_pass.DecodeGraphs, "step", counted)
+    assert _actions(domain, ours, batch) == _actions(domain, plain, batch)
+    assert bool(steps) == (mode == "graphs")
+
+
+def test_sessions_keep_copies_of_the_pool_and_a_larger_batch_gets_a_larger_pool(domain, tiny):
+    """What a session keeps after a pooled decode is its own buffer, not a view of the pool (the pool
+    is the next call's); a call with more rows than the pool holds makes a larger one."""
+    from adaptbench.llm import batch_pass
+    from adaptbench.llm.backend import Request
+
+    from .test_decode import _grammar, _prompts
+
+    b = _sharp(tiny, batch_size=8, device=DEVICE)
+    batch_pass.set_mode(b.model, "graphs")
+    b.model.__dict__["_adapt_lean"] = False
+    g = _grammar(domain)
+    prompts = _prompts(domain, b, 3)
+    b.generate([Request(prompts[0], g, (), 12, session="a")])
+    pool = b.model.__dict__["_adapt_graphs"]
+    assert pool.rows == 1
+    kept = b.sessions._items["a"][1]
+    assert all(layer._k.data_ptr() != pk.data_ptr() for layer, pk in zip(kept, pool.k, strict=True))
+    b.generate([Request(p, g, (), 12, session=f"s{i}") for i, p in enumerate(prompts)])
+    assert b.model.__dict__["_adapt_graphs"].rows == 4
+    for key in ("s0", "s1", "s2"):
+        assert not any(isinstance(x, batch_pass.PoolLayer) for x in b.sessions._items[key][1])
