@@ -65,8 +65,8 @@ def test_the_attention_bias_is_causal_among_new_tokens_and_hides_padding():
 @pytest.mark.parametrize("batch,ride", [(1, False), (5, True), (5, False)])
 def test_rollouts_through_the_gpu_passes_act_as_the_model_forward_does(domain, tiny, mode, batch, ride, monkeypatch):
     """Planner rollouts (greedy, under the grammar; one row, several with stopped rows riding and with
-    compaction) take the same actions through the lean pass and through the pool's one-token pass as
-    through the model's forward; the pool's passes did run."""
+    compaction) take the same actions through the lean pass and through the pool's graphed passes (one
+    token, and a row's forced tokens together) as through the model's forward; the pool's passes ran."""
     from adaptbench.llm import batch_pass, decode
 
     if ride:
@@ -79,12 +79,14 @@ def test_rollouts_through_the_gpu_passes_act_as_the_model_forward_does(domain, t
     real = batch_pass.DecodeGraphs.step
 
     def counted(self, *args):
-        steps.append(len(args[1]))
+        steps.append(max(len(t) for t in args[1]))  # tokens a row reads in the pass
         return real(self, *args)
 
     monkeypatch.setattr(batch_pass.DecodeGraphs, "step", counted)
     assert _actions(domain, ours, batch) == _actions(domain, plain, batch)
     assert bool(steps) == (mode == "graphs")
+    if steps:
+        assert min(steps) == 1 and max(steps) > 1  # one-token passes, and passes over forced tokens
 
 
 def test_sessions_keep_copies_of_the_pool_and_a_larger_batch_gets_a_larger_pool(domain, tiny):
@@ -92,6 +94,7 @@ def test_sessions_keep_copies_of_the_pool_and_a_larger_batch_gets_a_larger_pool(
     is the next call's); a call with more rows than the pool holds makes a larger one."""
     from adaptbench.llm import batch_pass
     from adaptbench.llm.backend import Request
+    from adaptbench.llm.kv_buffer import PackedRow
 
     from .test_decode import _grammar, _prompts
 
@@ -103,9 +106,11 @@ def test_sessions_keep_copies_of_the_pool_and_a_larger_batch_gets_a_larger_pool(
     b.generate([Request(prompts[0], g, (), 12, session="a")])
     pool = b.model.__dict__["_adapt_graphs"]
     assert pool.rows == 1
-    kept = b.sessions._items["a"][1]
-    assert all(layer._k.data_ptr() != pk.data_ptr() for layer, pk in zip(kept, pool.k, strict=True))
+    kept = b.sessions._items["a"]
+    assert isinstance(kept[1], PackedRow) and kept[1].n == len(kept[0])  # every layer in one tensor
+    assert kept[1].data.untyped_storage().data_ptr() != pool.kv.untyped_storage().data_ptr()
     b.generate([Request(p, g, (), 12, session=f"s{i}") for i, p in enumerate(prompts)])
     assert b.model.__dict__["_adapt_graphs"].rows == 4
     for key in ("s0", "s1", "s2"):
-        assert not any(isinstance(x, batch_pass.PoolLayer) for x in b.sessions._items[key][1])
+        packed = b.sessions._items[key][1]
+        assert packed.data.untyped_storage().data_ptr() != b.model.__dict__["_adapt_graphs"].kv.untyped_storage().data_ptr()

@@ -19,12 +19,12 @@ memory-efficient kernel); one additive mask per pass (`attention_bias`), shared 
 query/key/value and gate/up projections stacked (`Stacked`: two products where there were five). Its
 hidden states equal the model forward's up to rounding (tested on the CPU in float32).
 
-`DecodeGraphs` keeps one key/value pool per model ([rows, kv heads, capacity, d] per layer, allocated
-once) that a decode call's batch cache lives in, and captures the one-token pass for each (rows,
-length) bucket once: rows and length rounded up to a power of two, the rows past the batch reading
-nothing, the positions past a row's cache masked. A replay launches the whole pass at once (one CPU
-call for ~1,000 kernels). Passes over several tokens (a row's forced tokens) run `forward` on the same
-pool.
+`DecodeGraphs` keeps one key/value pool per model ([layers, 2, rows, kv heads, capacity, d], allocated
+once) that a decode call's batch cache lives in, and captures the decoding pass for each (rows,
+length, new tokens) bucket once: each rounded up to a power of two, the rows past the batch reading
+nothing, the positions past a row's cache and a row's padding masked. A replay launches the whole pass
+at once (one CPU call for ~1,000 kernels). A session keeps its row of the pool as one `PackedRow` copy.
+Reading a step's new prompt tokens (`decode.prefill_many`) runs `forward` on the same pool.
 """
 
 from __future__ import annotations
@@ -35,7 +35,7 @@ import torch
 import torch.nn.functional as F
 
 from . import one_row
-from .kv_buffer import BufferLayer
+from .kv_buffer import BufferLayer, PackedRow, as_layers
 
 MODES = ("hf", "lean", "graphs")  # the model's forward; `forward`; `forward` plus CUDA graphs of one-token passes
 MODE_ENV = "ADAPT_DECODE_PASS"  # overrides the device's default (for tests and benchmarks)
@@ -162,6 +162,7 @@ def forward(model, layers: list, ids: torch.Tensor, pos: torch.Tensor, bias) -> 
 
 
 ROWS_MIN, LENGTH_MIN = 1, 256  # the smallest buckets
+LONGEST = 32  # the most new tokens per row a graphed pass reads (a longer pass runs `forward`)
 
 
 def bucket(n: int, least: int) -> int:
@@ -179,15 +180,15 @@ class DecodeGraphs:
         cfg, dev, dtype = model.config, model.device, model.dtype
         heads = cfg.num_key_value_heads or cfg.num_attention_heads
         dim = getattr(cfg, "head_dim", None) or cfg.hidden_size // cfg.num_attention_heads
-        shape = (rows, heads, capacity, dim)
-        self.k = [torch.zeros(shape, dtype=dtype, device=dev) for _ in model.model.layers]
-        self.v = [torch.zeros(shape, dtype=dtype, device=dev) for _ in model.model.layers]
-        self.ids = torch.zeros((rows, 1), dtype=torch.long, device=dev)
-        self.pos = torch.zeros((rows, 1), dtype=torch.long, device=dev)
-        self.col = torch.zeros((1,), dtype=torch.long, device=dev)
-        self.bias = torch.full((rows, 1, 1, capacity), torch.finfo(dtype).min, dtype=dtype, device=dev)
-        self.out: dict = {}  # (rows, length) -> logits [rows, V] the graph writes
-        self.graphs: dict = {}  # (rows, length) -> torch.cuda.CUDAGraph
+        self.kv = torch.zeros((len(model.model.layers), 2, rows, heads, capacity, dim), dtype=dtype, device=dev)
+        self.k = [self.kv[i, 0] for i in range(self.kv.shape[0])]  # per layer [rows, heads, capacity, dim]
+        self.v = [self.kv[i, 1] for i in range(self.kv.shape[0])]
+        self.ids = torch.zeros((rows, LONGEST), dtype=torch.long, device=dev)
+        self.pos = torch.zeros((rows, LONGEST), dtype=torch.long, device=dev)
+        self.cols = torch.zeros((LONGEST,), dtype=torch.long, device=dev)
+        self.bias = torch.full((rows, 1, LONGEST, capacity), torch.finfo(dtype).min, dtype=dtype, device=dev)
+        self.out: dict = {}  # (rows, length, width) -> logits [rows, V] the graph writes
+        self.graphs: dict = {}  # (rows, length, width) -> torch.cuda.CUDAGraph
         self.pool = torch.cuda.graph_pool_handle() if dev.type == "cuda" else None
         self.captures = 0
 
@@ -205,17 +206,43 @@ class DecodeGraphs:
             out.append(PoolLayer(pk, pv, b, n))
         return out
 
+    def stack(self, rows_layers: list, lengths: list) -> tuple:
+        """The rows' caches (`PackedRow`s or per-layer lists) left-padded to one width in the pool's first
+        rows: one copy per packed row; returns (`PoolLayer`s, attention mask [B, width])."""
+        width, dev = max(lengths), self.kv.device
+        for r, (cached, n) in enumerate(zip(rows_layers, lengths, strict=True)):
+            if isinstance(cached, PackedRow):
+                self.kv[:, :, r, :, width - n:width] = cached.data[:, :, :, :n]
+                continue
+            for layer, pk, pv in zip(as_layers(cached), self.k, self.v, strict=True):
+                pk[r, :, width - n:width] = layer.keys[0, :, :n]
+                pv[r, :, width - n:width] = layer.values[0, :, :n]
+        mask = torch.zeros((len(lengths), width), dtype=torch.long)
+        for r, n in enumerate(lengths):
+            mask[r, width - n:] = 1
+        b = len(lengths)
+        return [PoolLayer(pk, pv, b, width) for pk, pv in zip(self.k, self.v, strict=True)], mask.to(dev)
+
+    def packed(self, k: int, where, n: int) -> PackedRow:
+        """Row k's cached positions (`where`, on the CPU: its real ones; None: the first `n`) of every
+        layer, copied out as one `PackedRow`."""
+        if where is None:
+            return PackedRow(self.kv[:, :, k, :, :n].clone())
+        return PackedRow(self.kv[:, :, k].index_select(3, where.to(self.kv.device)))
+
     def holds(self, layers: list) -> bool:
         """Whether these layers are this pool's (still: a layer that outgrew it left)."""
         return all(isinstance(x, PoolLayer) and x.pooled(pk) for x, pk in zip(layers, self.k, strict=True))
 
-    def step(self, layers: list, tokens: list, positions: list, mask) -> torch.Tensor:
-        """One token per row (rows of the pool's layers), each at its position; `mask` [B, n] of the
-        cached positions (None: all real). Returns logits [B, V] (float32; a view valid until the next
-        step)."""
-        b, n = len(tokens), layers[0].get_seq_length()
-        key = (min(bucket(b, ROWS_MIN), self.rows), min(bucket(n + 1, LENGTH_MIN), self.capacity))
-        self._inputs(key, tokens, positions, mask, n)
+    def step(self, layers: list, new: list, starts: list, mask) -> tuple:
+        """A pass over each row's new tokens (`new`: 1 to `LONGEST` per row, right-aligned and padded
+        to a power of two), row r's first at position `starts[r]`, over the pool's layers; `mask` [B, n]
+        of the cached positions (None: all real). Returns (logits [B, V] (float32; a view valid until
+        the next step), the mask after the pass: None while no position is padding)."""
+        b, n = len(new), layers[0].get_seq_length()
+        width = bucket(max(len(t) for t in new), 1)
+        key = (min(bucket(b, ROWS_MIN), self.rows), min(bucket(n + width, LENGTH_MIN), self.capacity), width)
+        after = self._inputs(key, new, starts, mask, n)
         if key not in self.out:
             self._capture(key)
         elif self.pool is not None:
@@ -223,34 +250,42 @@ class DecodeGraphs:
         else:
             self.out[key] = self._pass(*key)
         for layer in layers:
-            layer.grew(1)
-        return self.out[key][:b]
+            layer.grew(width)
+        return self.out[key][:b], after
 
-    def _inputs(self, key, tokens: list, positions: list, mask, n: int) -> None:
-        rows, length = key
-        b, dev = len(tokens), self.ids.device
-        self.ids[:b, 0] = torch.tensor(tokens, dtype=torch.long).to(dev, non_blocking=True)
-        self.pos[:b, 0] = torch.tensor(positions, dtype=torch.long).to(dev, non_blocking=True)
-        self.ids[b:rows] = 0
-        self.pos[b:rows] = 0
-        self.col.fill_(n)
-        low = torch.finfo(self.bias.dtype).min
-        bias = self.bias[:rows, 0, 0, :length]
-        bias.fill_(low)
-        if mask is None:
-            bias[:b, :n + 1] = 0
+    def _inputs(self, key, new: list, starts: list, mask, n: int):
+        """Write a pass's inputs into the graphs' static tensors; returns the mask after the pass."""
+        from .decode import _right_aligned
+
+        rows, length, width = key
+        b, dev = len(new), self.ids.device
+        ids, pos, tail = _right_aligned(new, starts, 0, width)
+        self.ids[:b, :width] = ids.to(dev)
+        self.pos[:b, :width] = pos.to(dev)
+        self.ids[b:rows, :width] = 0
+        self.pos[b:rows, :width] = 0
+        self.cols[:width] = torch.arange(n, n + width, device=dev)
+        tail = tail.to(dev)
+        if mask is None and bool(tail.all()):
+            after = None
+            full = torch.ones((b, n + width), dtype=torch.long, device=dev)
         else:
-            bias[:b, :n] = torch.where(mask[:, :n].to(dev).bool(), 0.0, low)
-            bias[:b, n] = 0
+            before = mask if mask is not None else torch.ones((b, n), dtype=torch.long, device=dev)
+            after = full = torch.cat([before.to(dev), tail], dim=1)
+        bias = self.bias[:rows, :, :width, :length]
+        bias.fill_(torch.finfo(bias.dtype).min)
+        bias[:b, :, :, :n + width] = attention_bias(full, width, bias.dtype)
+        return after
 
-    def _pass(self, rows: int, length: int) -> torch.Tensor:
-        """The one-token pass over the pool's first `rows` rows attending to `length` positions."""
+    def _pass(self, rows: int, length: int, width: int) -> torch.Tensor:
+        """The pass over `width` new tokens of the pool's first `rows` rows attending to `length` positions."""
         model, inner = self.model, self.model.model
-        h = inner.embed_tokens(self.ids[:rows])
-        cos, sin = inner.rotary_emb(h, self.pos[:rows])
-        bias = self.bias[:rows, :, :, :length]
+        h = inner.embed_tokens(self.ids[:rows, :width])
+        cos, sin = inner.rotary_emb(h, self.pos[:rows, :width])
+        bias = self.bias[:rows, :, :width, :length]
+        cols = self.cols[:width]
         for layer, w, pk, pv in zip(inner.layers, stacked(model), self.k, self.v, strict=True):
-            h = _layer(layer, w, h, cos, sin, _writer(pk[:rows], pv[:rows], self.col, length), bias)
+            h = _layer(layer, w, h, cos, sin, _writer(pk[:rows], pv[:rows], cols, length), bias)
         return model.get_output_embeddings()(_norm(inner.norm, h)[:, -1]).float()
 
     def _capture(self, key) -> None:
@@ -271,10 +306,10 @@ class DecodeGraphs:
         self.captures += 1
 
 
-def _writer(pk: torch.Tensor, pv: torch.Tensor, col: torch.Tensor, length: int):
+def _writer(pk: torch.Tensor, pv: torch.Tensor, cols: torch.Tensor, length: int):
     def write(k, v):
-        pk.index_copy_(2, col, k)
-        pv.index_copy_(2, col, v)
+        pk.index_copy_(2, cols, k)
+        pv.index_copy_(2, cols, v)
         return pk[:, :, :length], pv[:, :, :length]
 
     return write
@@ -298,13 +333,16 @@ def graphs_of(model, rows: int, positions: int) -> DecodeGraphs | None:
 
 class PoolLayer(BufferLayer):
     """A batch cache layer whose buffer is the first `rows` rows of a `DecodeGraphs` pool (written in
-    place by graph replays and by `forward`); copies out what a session keeps, and compacts in place."""
+    place by graph replays and by `forward`); copies out what a session keeps, and compacts in place.
+    Its `keys` and `values` are sliced when read (a replay only counts its positions: `grew`)."""
+
+    keys = property(lambda self: self._k[:, :, :self.n], lambda self, value: None)
+    values = property(lambda self: self._v[:, :, :self.n], lambda self, value: None)
 
     def __init__(self, pk: torch.Tensor, pv: torch.Tensor, rows: int, n: int):
         super().__init__(pk[:rows], pv[:rows], adopt=True)
         self._pk, self._pv = pk, pv
         self.n = n
-        self._views()
 
     def pooled(self, pk: torch.Tensor) -> bool:
         """Whether this layer still lives in that pool."""
@@ -313,7 +351,6 @@ class PoolLayer(BufferLayer):
     def grew(self, q: int) -> None:
         """A graph replay wrote `q` more positions."""
         self.n += q
-        self._views()
 
     def select(self, rows: torch.Tensor) -> None:
         """Keep only these batch rows, moved to the pool's first rows."""
@@ -323,7 +360,6 @@ class PoolLayer(BufferLayer):
         self._pk[:len(rows)] = k
         self._pv[:len(rows)] = v
         self._k, self._v = self._pk[:len(rows)], self._pv[:len(rows)]
-        self._views()
         return None
 
     def row(self, k: int, where):

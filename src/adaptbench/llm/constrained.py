@@ -66,13 +66,20 @@ def grammar_error(lltok, grammar: str) -> str:
     return llguidance.LLMatcher.validate_grammar(grammar, lltok)
 
 
-_BITS = torch.arange(32, dtype=torch.int32)
+_BITS = {"cpu": torch.arange(32, dtype=torch.int32)}  # by device
+
+
+def _bits(device) -> torch.Tensor:
+    key = str(device)
+    if key not in _BITS:
+        _BITS[key] = torch.arange(32, dtype=torch.int32, device=device)
+    return _BITS[key]
 
 
 def unpack_bits(words: torch.Tensor, vocab: int) -> torch.Tensor:
     """Allowed-token booleans [rows, vocab] from llguidance bitmask words [rows, n] (int32; bit i of word
-    w = token 32 w + i); tokens past the mask are not allowed."""
-    table = ((words.unsqueeze(-1) >> _BITS) & 1).bool().reshape(words.shape[0], -1)
+    w = token 32 w + i), on the words' device; tokens past the mask are not allowed."""
+    table = ((words.unsqueeze(-1) >> _bits(words.device)) & 1).bool().reshape(words.shape[0], -1)
     if table.shape[1] < vocab:
         table = torch.nn.functional.pad(table, (0, vocab - table.shape[1]), value=False)
     return table[:, :vocab]
@@ -236,7 +243,7 @@ class GrammarProcessor(LogitsProcessor):
         same = len(live) == len(rows) and list(live) == list(rows)
         words = self.bitmask if same and len(rows) == self.bitmask.shape[0] else \
             self.bitmask[torch.tensor(live, dtype=torch.long)]
-        forbidden = ~unpack_bits(words, vocab).to(logits.device)
+        forbidden = ~unpack_bits(words.to(logits.device), vocab)  # unpacked where the logits are
         if same:  # every row constrained, in order: mask in place
             logits.masked_fill_(forbidden, float("-inf"))
         else:

@@ -37,7 +37,7 @@ from transformers.cache_utils import DynamicLayer
 
 from . import batch_pass, one_row
 from .constrained import unpack_bits
-from .kv_buffer import BufferLayer, cache_of
+from .kv_buffer import BufferLayer, PackedRow, as_layers, cache_of
 
 _POOL: list = []
 os.register_at_fork(after_in_child=_POOL.clear)  # a forked worker has no threads: it starts its own pool
@@ -180,6 +180,11 @@ def _start_from(row: Row, hit, own: bool = False) -> list | None:
     if start <= 0:
         return None
     row.reused = start
+    if isinstance(cached, PackedRow):  # kept from a pooled decode (`batch_pass`)
+        if own:
+            cached.truncate(start)
+            return cached
+        return cached.head(start)
     if own:
         for layer in cached:
             layer.truncate(start)
@@ -192,6 +197,7 @@ def prefill(model, row: Row, layers: list | None, room: int = 0):
     """Read the row's prompt after its `row.reused` cached tokens into `layers` (`BufferLayer`s; None:
     new ones), leaving `room` positions to decode into; returns (last logits [V], layers)."""
     start = row.reused
+    layers = as_layers(layers)
     ids = torch.tensor([row.prompt[start:]], dtype=torch.long, device=model.device)
     pos = torch.arange(start, len(row.prompt), device=model.device).unsqueeze(0)
     if layers is None:
@@ -205,13 +211,14 @@ def prefill(model, row: Row, layers: list | None, room: int = 0):
     return out.logits[0, -1].float(), layers
 
 
-def prefill_many(model, rows: list, layers: list, pad_id: int = 0, room: int = 0) -> tuple:
+def prefill_many(model, rows: list, layers: list, pad_id: int = 0, room: int = 0, graphs=None) -> tuple:
     """Read several cached rows' new tokens in one forward pass: caches left-padded to one width,
     new tokens right-aligned after them (padding between, masked), each at its own positions, with
-    `room` positions after them. Returns ([last logits [V] per row], batch cache, attention mask [B, W])."""
+    `room` positions after them (in `graphs`' pool where given). Returns ([last logits [V] per row],
+    batch cache, attention mask [B, W])."""
     cached = [r.reused for r in rows]
     width, most = max(cached), max(len(r.prompt) - r.reused for r in rows)
-    cache, mask = _stack(model, layers, cached, most + room)
+    cache, mask = _stack(model, layers, cached, most + room, graphs)
     ids, pos, tail = _right_aligned([r.prompt[r.reused:] for r in rows], cached, pad_id)
     dev = model.device
     mask = torch.cat([mask, tail.to(mask.device)], dim=1)
@@ -261,14 +268,15 @@ def _read_shared(model, rows: list, layers: list) -> None:
 
 
 def prefill_rows(model, rows: list, sessions: Sessions, pad_id: int = 0, together: bool = True,
-                 room: int = 0) -> tuple:
+                 room: int = 0, graphs=None) -> tuple:
     """(last logits, layers) per row, and the batch cache and mask when every row was read in one
     pass (None otherwise). Rows without a cache that open with the same prefix (≥ SHARED_MIN tokens)
     start from it, read once. With `together`, rows with a cache and a short new part are read in one
     pass (`prefill_many`), the others one by one. On a GPU one pass saves a forward pass per row; on a
     CPU reading is compute-bound and the padded pass gains little or loses (measured in 16-episode
     rollouts: +13% on the tiny model, -15% on a 4-layer one), so the backend turns it off there.
-    `room`: positions each row's own layers keep free to decode into."""
+    `room`: positions each row's own layers keep free to decode into; `graphs`: the pool to read into
+    (`batch_pass.DecodeGraphs`)."""
     layers = [reuse(r, sessions) for r in rows]
     _read_shared(model, rows, layers)
     short = [i for i, r in enumerate(rows)
@@ -276,7 +284,7 @@ def prefill_rows(model, rows: list, sessions: Sessions, pad_id: int = 0, togethe
     out: list = [None] * len(rows)
     if len(short) > 1:
         logits, cache, mask = prefill_many(model, [rows[i] for i in short], [layers[i] for i in short], pad_id,
-                                           room)
+                                           room, graphs if len(short) == len(rows) else None)
         if len(short) == len(rows):
             return list(zip(logits, [None] * len(rows), strict=True)), (cache, mask)
         width = max(rows[i].reused for i in short)
@@ -289,10 +297,14 @@ def prefill_rows(model, rows: list, sessions: Sessions, pad_id: int = 0, togethe
     return out, None
 
 
-def _stack(model, rows_layers: list, lengths: list, room: int) -> tuple:
-    """One cache holding the rows' caches left-padded to one width, with `room` positions to grow;
-    returns (cache, attention mask [B, W])."""
+def _stack(model, rows_layers: list, lengths: list, room: int, graphs=None) -> tuple:
+    """One cache holding the rows' caches left-padded to one width, with `room` positions to grow (in
+    `graphs`' pool where it fits); returns (cache, attention mask [B, W])."""
     width = max(lengths)
+    if graphs is not None and graphs.fits(len(rows_layers), width + room):
+        layers, mask = graphs.stack(rows_layers, lengths)
+        return cache_of(layers, model.config), mask
+    rows_layers = [as_layers(x) for x in rows_layers]
     layers = []
     for li in range(len(rows_layers[0])):
         k0 = rows_layers[0][li].keys
@@ -327,14 +339,14 @@ def decode(model, rows: list, sessions: Sessions, picker, stopped, pad_id: int =
     t0 = time.perf_counter()
     picker.start(list(range(len(rows))))  # the first masks need no prompt: computed while the prompts are read
     room = max(r.max_tokens for r in rows)
-    read_rows, batch = prefill_rows(model, rows, sessions, pad_id, together, room)
+    graphs = batch_pass.graphs_of(model, len(rows), max(len(r.prompt) for r in rows) + room)
+    read_rows, batch = prefill_rows(model, rows, sessions, pad_id, together, room, graphs)
     first, layers = zip(*read_rows, strict=True)
     reading = time.perf_counter() - t0
     read = [len(r.prompt) for r in rows]  # each row's tokens in the cache
     logits = torch.stack(first)
-    cache, mask = batch if batch is not None else _batch_cache(model, list(layers), read, room)
-    graphs = batch_pass.graphs_of(model, len(rows), max(read) + room)
-    if graphs is not None:
+    cache, mask = batch if batch is not None else _batch_cache(model, list(layers), read, room, graphs)
+    if graphs is not None and not graphs.holds(cache.layers):
         cache.layers = graphs.adopt(cache.layers)
     narrow = narrow_head(model)
     slots = list(range(len(rows)))  # the request row in each cache row (None: a stopped row riding along)
@@ -345,7 +357,7 @@ def decode(model, rows: list, sessions: Sessions, picker, stopped, pad_id: int =
             rows[i].tokens.append(picked[k])
         running = _take_forced(rows, [i for i in active if not stopped(i, rows[i])], picker, stopped)
         if len(running) < len(active):
-            _store(rows, slots, running, read, cache, mask, sessions)
+            _store(rows, slots, running, read, cache, mask, sessions, graphs)
             if not running:
                 break
             slots = [i if i in running else None for i in slots]
@@ -362,13 +374,13 @@ def decode(model, rows: list, sessions: Sessions, picker, stopped, pad_id: int =
     return reading
 
 
-def _batch_cache(model, layers: list, read: list, room: int) -> tuple:
+def _batch_cache(model, layers: list, read: list, room: int, graphs=None) -> tuple:
     """(cache, attention mask or None) to decode the rows in: a single row's own layers, else the rows'
-    caches left-padded into one buffer; no mask where no row is padded (attention without an explicit
-    mask: the fast kernels)."""
-    if len(layers) == 1:
-        return cache_of(layers[0], model.config), None
-    cache, mask = _stack(model, layers, read, room)
+    caches left-padded into one buffer (`graphs`' pool where given); no mask where no row is padded
+    (attention without an explicit mask: the fast kernels)."""
+    if len(layers) == 1 and graphs is None:
+        return cache_of(as_layers(layers[0]), model.config), None
+    cache, mask = _stack(model, layers, read, room, graphs)
     return cache, None if len(set(read)) == 1 else mask
 
 
@@ -409,10 +421,20 @@ def _take_forced(rows: list, running: list, picker, stopped) -> set:
     return running
 
 
-def _store(rows: list, slots: list, running: set, read: list, cache, mask, sessions: Sessions) -> None:
+def _store(rows: list, slots: list, running: set, read: list, cache, mask, sessions: Sessions,
+           graphs=None) -> None:
     """Give the sessions of the rows that just stopped their caches (the tokens read so far): the
-    cache itself for a single row with no padding, else a copy of the row's real positions."""
+    cache itself for a single row with no padding, else a copy of the row's real positions (from a
+    `graphs` pool: one `PackedRow` copy for all layers)."""
     if sessions.limit <= 0:
+        return
+    if graphs is not None and graphs.holds(cache.layers):
+        host = None if mask is None else mask.cpu()  # one transfer for every row's positions
+        for k, i in enumerate(slots):
+            if i is not None and i not in running and rows[i].session is not None:
+                where = None if host is None else host[k].nonzero().view(-1)
+                sessions.put(rows[i].session, (rows[i].prompt + rows[i].tokens)[:read[i]],
+                             graphs.packed(k, where, cache.get_seq_length()))
         return
     for k, i in enumerate(slots):
         if i is None or i in running or rows[i].session is None:
@@ -477,9 +499,8 @@ def _forward(model, cache, mask, new: list, read: list, pad_id: int, head=None, 
     dev = model.device
     if mask is None and len(new) == 1 and most == 1 and lean(model):  # one row, one token: the lean pass
         return _head(model, one_row.step(model, cache, new[0][0], read[0]), head), None
-    if most == 1 and graphs is not None and graphs.holds(cache.layers):
-        logits = graphs.step(cache.layers, [t[0] for t in new], read, mask)
-        return logits, None if mask is None else torch.cat([mask, mask.new_ones((mask.shape[0], 1))], dim=1)
+    if most <= batch_pass.LONGEST and graphs is not None and graphs.holds(cache.layers):
+        return graphs.step(cache.layers, new, read, mask)
     if mask is None and any(len(t) != most for t in new):
         mask = torch.ones((len(new), width), dtype=torch.long, device=cache.layers[0].keys.device)
     if most == 1:
@@ -501,10 +522,10 @@ def _forward(model, cache, mask, new: list, read: list, pad_id: int, head=None, 
     return logits, mask
 
 
-def _right_aligned(chunks: list, starts: list, pad_id: int) -> tuple:
-    """Rows' new tokens right-aligned and left-padded to the longest: (ids, position ids from each
-    row's `start`, attention-mask tail with 0 on the padding), each [B, longest], on the CPU."""
-    most = max(len(c) for c in chunks)
+def _right_aligned(chunks: list, starts: list, pad_id: int, width: int | None = None) -> tuple:
+    """Rows' new tokens right-aligned and left-padded to the longest (or `width`): (ids, position ids
+    from each row's `start`, attention-mask tail with 0 on the padding), each [B, longest], on the CPU."""
+    most = width or max(len(c) for c in chunks)
     ids = torch.full((len(chunks), most), pad_id, dtype=torch.long)
     pos = torch.zeros((len(chunks), most), dtype=torch.long)
     tail = torch.zeros((len(chunks), most), dtype=torch.long)

@@ -110,3 +110,35 @@ def cache_of(layers: list, config) -> DynamicCache:
     cache = DynamicCache(config=config)
     cache.layers = list(layers)
     return cache
+
+
+class PackedRow:
+    """One row's keys and values of every layer in one tensor [layers, 2, heads, n, dim]: what a
+    session keeps after a decode in a `batch_pass.DecodeGraphs` pool (one copy out of the pool, and
+    one back in at the episode's next step, instead of two per layer). Per-layer `BufferLayer`s are
+    made only where a path needs them (`layers`)."""
+
+    def __init__(self, data: torch.Tensor):
+        self.data, self.n = data, data.shape[3]
+
+    def __len__(self) -> int:
+        return self.data.shape[0]
+
+    def truncate(self, n: int) -> None:
+        """Keep the first `n` positions."""
+        self.n = min(n, self.n)
+
+    def head(self, n: int) -> PackedRow:
+        """A copy of the first `n` positions."""
+        return PackedRow(self.data[:, :, :, :n].clone())
+
+    def layers(self) -> list:
+        """Per-layer `BufferLayer`s over this row's first `n` positions (views: a layer that must grow
+        copies itself)."""
+        d = self.data[:, :, :, :self.n].unsqueeze(3)  # [layers, 2, heads, 1, n, dim] -> batch axis
+        return [BufferLayer(d[i, 0].transpose(0, 1), d[i, 1].transpose(0, 1), adopt=True) for i in range(len(self))]
+
+
+def as_layers(cached) -> list | None:
+    """Per-layer cache layers of a session's cache (a `PackedRow` unpacked; a list as it is)."""
+    return cached.layers() if isinstance(cached, PackedRow) else cached
