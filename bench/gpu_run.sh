@@ -18,7 +18,7 @@ if [ -d .whl ]; then
 fi
 export PYTHONPATH=$PWD/src:${PYTHONPATH:-} PYTHONUNBUFFERED=1 TOKENIZERS_PARALLELISM=true
 { nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv,noheader
-  python3 -c "import torch, transformers, llguidance; print('torch', torch.__version__, 'transformers', transformers.__version__, 'llguidance', llguidance.__version__)"
+  python3 -c "import importlib.metadata as m; print(*(f'{p} {m.version(p)}' for p in ('torch', 'transformers', 'llguidance')))"
   nproc; } 2>&1 | tee "$out/machine.txt"
 start=$(date +%s)
 ADAPT_TEST_DEVICE=cuda timeout 150 python3 -m pytest -q -p no:cacheprovider tests/llm/test_batch_pass.py 2>&1 \
