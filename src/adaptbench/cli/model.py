@@ -252,18 +252,21 @@ def _cmd_model_student(args) -> int:
     try:
         training_personas(domain, args.split)
         s = StudentSettings(split=args.split, tasks=tasks, ask_seeds=_seeds_or_none(args.ask_seeds, parse_seeds),
-                            oracle_seeds=_seeds_or_none(args.oracle_seeds, parse_seeds), hidden=args.hidden,
+                            oracle_seeds=_seeds_or_none(args.oracle_seeds, parse_seeds),
+                            pair_seeds=_seeds_or_none(args.pair_seeds, parse_seeds), hidden=args.hidden,
                             layers=args.layers, steps=args.steps, lr=args.lr, seed=args.seed, workers=args.workers,
                             save_every=args.save_every, init=_init_model(args.init))
     except ValueError as exc:
         _fail(str(exc))
     if min(args.steps, args.workers, args.save_every) < 1:
         _fail("--steps, --workers and --save-every must be at least 1")
-    if not s.ask_seeds and not s.oracle_seeds:
-        _fail("--ask-seeds and --oracle-seeds are both none: give one of them scene seeds (e.g. --oracle-seeds 100)")
+    if not s.ask_seeds and not s.oracle_seeds and not s.pair_seeds:
+        _fail("--ask-seeds, --oracle-seeds and --pair-seeds are all none: give one of them scene seeds "
+              "(e.g. --oracle-seeds 100)")
     from ..harness.seeds import overlap_message
 
-    for flag, seeds in (("--ask-seeds", s.ask_seeds), ("--oracle-seeds", s.oracle_seeds)):
+    for flag, seeds in (("--ask-seeds", s.ask_seeds), ("--oracle-seeds", s.oracle_seeds),
+                        ("--pair-seeds", s.pair_seeds)):
         line = overlap_message(flag, seeds)
         if line and not args.allow_eval_seeds:
             _fail(line)
@@ -318,6 +321,11 @@ def _add_student_command(msub) -> None:
                         "questions, the base student of the oracle's episodes alone)")
     q.add_argument("--oracle-seeds", default=seeds_text(d.oracle_seeds),
                    help=f"scene seeds of the oracle episodes (default {seeds_text(d.oracle_seeds)})")
+    q.add_argument("--pair-seeds", default="none",
+                   help="scene seeds of answer-following rows (default none): both sides of every answer-use probe "
+                        "pair of the training personas in those scenes, each its prompt and its answer's action "
+                        "(training/answer_rows.py), e.g. --init BASE --ask-seeds none --pair-seeds 100-111 to teach "
+                        "a base to act on replies")
     q.add_argument("--allow-eval-seeds", action="store_true",
                    help="train on the evaluation scene seeds 0-3 anyway (refused by default: `adapt eval` flags them)")
     q.add_argument("--tasks", default="all", help="'all' (default) or comma-separated task ids")

@@ -28,6 +28,8 @@ import json
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
+from .answer_rows import answer_examples, read_rows
+
 IGNORE = -100  # label of a token the loss skips
 
 
@@ -317,13 +319,15 @@ def pretrain(domain, model_dir, data_paths, out, steps: int = 2000, lr: float = 
     tok = AutoTokenizer.from_pretrained(model_dir)
     records = read_records(data_paths)
     data, skipped = examples(domain, records, tok, budget)
+    answers = read_rows(data_paths)  # answer-following rows (`answer_rows`), beside the episodes
+    data += answer_examples(answers, tok)
     if not data:
         raise ValueError(f"no training examples in {', '.join(map(str, data_paths))} "
                          f"({len(records)} records, {skipped} not reproducible with this spec)")
     targets = sum(1 for _, labels in data for t in labels if t == tok.eos_token_id)
     tokens = sum(len(ids) for ids, _ in data)
-    log(f"{targets} steps of {len(records) - skipped} episodes ({skipped} skipped) in {len(data)} sequences, "
-        f"{tokens} tokens")
+    log(f"{targets} steps of {len(records) - skipped} episodes ({skipped} skipped)"
+        + (f" and {len(answers)} answer rows" if answers else "") + f" in {len(data)} sequences, {tokens} tokens")
     set_seed(seed)
     model = AutoModelForCausalLM.from_pretrained(model_dir, dtype=torch.float32)
     resumed, start = last_checkpoint(checkpoints) if checkpoints is not None else (0, None)

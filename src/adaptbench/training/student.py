@@ -36,6 +36,7 @@ class StudentSettings:
     split: str = "0"  # its unseen personas are left out of the data
     ask_seeds: tuple = tuple(range(100, 104))  # scene seeds of the oracle-ask episodes (never 0-3)
     oracle_seeds: tuple = tuple(range(104, 106))  # scene seeds of the plain oracle episodes
+    pair_seeds: tuple = ()  # scene seeds of answer-following rows (`answer_rows`; none by default)
     hidden: int = 128
     layers: int = 4
     vocab: int = 4096
@@ -61,11 +62,20 @@ def training_personas(domain, split: str) -> tuple:
 
 
 def teacher_data(domain, s: StudentSettings, out: Path, progress: bool = True) -> list:
-    """Roll out the teachers into OUT/data/<agent>.jsonl (episodes already there are kept); the files."""
+    """Roll out the teachers into OUT/data/<agent>.jsonl (episodes already there are kept) and, with
+    `pair_seeds`, write the answer rows to OUT/data/answer-rows.jsonl (kept when there); the files."""
     from ..harness.rollout import Job, rollout
 
     personas, tasks = training_personas(domain, s.split), s.tasks or tuple(domain.task)
     files = []
+    if s.pair_seeds:
+        from .answer_rows import answer_rows, write_rows
+
+        path = out / "data" / "answer-rows.jsonl"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        if not path.is_file():
+            write_rows(path, answer_rows(domain, personas, s.pair_seeds, tasks=list(s.tasks) or None))
+        files.append(path)
     for agent, seeds in s.agents():
         path = out / "data" / f"{agent}.jsonl"
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -90,7 +100,7 @@ def build_student(domain, out, s: StudentSettings = StudentSettings(), log=print
     r = pretrain(domain, base, files, out, steps=s.steps, lr=s.lr, seed=s.seed, log=log, checkpoints=out / "trainer",
                  save_every=s.save_every)
     before = _init_info(s.init)
-    seeds = {*s.ask_seeds, *s.oracle_seeds, *before.get("scene_seeds", ())}
+    seeds = {*s.ask_seeds, *s.oracle_seeds, *s.pair_seeds, *before.get("scene_seeds", ())}
     info = {"settings": asdict(s), "split": s.split, "teachers": [a for a, _ in s.agents()], "scene_seeds": sorted(seeds),
             **({"init": before} if s.init else {}), "spec_hash": domain.spec_hash,
             "data": [str(f.relative_to(out)) for f in files],

@@ -1,0 +1,75 @@
+"""Answer-following rows: the answer-use probe's prompt pairs as training steps, built in training scenes
+from training personas only (`adapt model student --pair-seeds`).
+
+    rows = answer_rows(domain, personas, seeds=range(100, 112))      # both sides of every pair
+    write_rows(path, rows); data = answer_examples(read_rows([path]), tokenizer)
+
+A pair (`llm.probe`) is two planner prompts that differ only in the user's answer to one recipe question,
+at the first step where the two answers' plans act differently; each side's row is its prompt and the
+action its answer's plan takes. Trained on both sides, the only thing that tells the two targets apart
+is the answer: the signal a student trained on whole oracle episodes gets too rarely to learn (one
+answer-dependent action among ~30 per episode, and in the plain oracle's episodes the same actions come
+with no answer at all). Both placements of the question are used (just before the recipe, and as the
+first action). A pair is kept only when both of its answers are training personas' preferences, so an
+unseen persona's words never reach the data; the probe's own scenes (seed 0 by default) stay apart.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+KIND = "answer"  # the `kind` of a row in a data file (episode records have `steps` instead)
+
+
+def answer_rows(domain, personas, seeds, places=("recipe", "start"), tasks=None) -> list:
+    """Both sides of every probe pair whose answers are both from `personas`, in the scenes of `seeds`
+    (of `tasks`; None: all), for each placement of the question: dicts with the pair's key, the
+    placement, the prompt's messages and prefix, and the side's action."""
+    from ..llm.probe import build_pairs
+
+    keep, rows = set(personas), []
+    for at in places:
+        for pair in build_pairs(domain, tasks=tasks, personas=sorted(keep), seeds=tuple(seeds), at=at):
+            if pair.a.persona not in keep or pair.b.persona not in keep:
+                continue
+            rows += [{"kind": KIND, "key": pair.key(), "at": at, "messages": list(side.prompt.messages),
+                      "prefix": side.prompt.prefix, "action": side.action} for side in (pair.a, pair.b)]
+    return rows
+
+
+def write_rows(path, rows: list) -> None:
+    """Write rows as JSON lines (through a temporary file: a killed write leaves no half file)."""
+    path = Path(path)
+    tmp = path.with_suffix(".tmp")
+    tmp.write_text("".join(json.dumps(r) + "\n" for r in rows))
+    tmp.replace(path)
+
+
+def read_rows(paths) -> list:
+    """The answer rows in data files (other lines, such as episode records, skipped)."""
+    out = []
+    for p in paths:
+        for line in Path(p).read_text().splitlines():
+            try:
+                r = json.loads(line)
+            except json.JSONDecodeError:
+                continue
+            if isinstance(r, dict) and r.get("kind") == KIND:
+                out.append(r)
+    return out
+
+
+def answer_examples(rows: list, tokenizer) -> list:
+    """Training sequences `(ids, labels)`: each row's rendered prompt with no loss, then its action and EOS."""
+    from ..llm.chat import render
+    from ..llm.prompts import Prompt
+    from .pretrain import IGNORE
+
+    out = []
+    for r in rows:
+        prompt = Prompt(tuple(r["messages"]), r.get("prefix", ""))
+        p = tokenizer(render(tokenizer, prompt), add_special_tokens=False)["input_ids"]
+        t = tokenizer(r["action"], add_special_tokens=False)["input_ids"] + [tokenizer.eos_token_id]
+        out.append((p + t, [IGNORE] * len(p) + t))
+    return out
