@@ -48,16 +48,9 @@ def write_rows(path, rows: list) -> None:
 
 def read_rows(paths) -> list:
     """The answer rows in data files (other lines, such as episode records, skipped)."""
-    out = []
-    for p in paths:
-        for line in Path(p).read_text().splitlines():
-            try:
-                r = json.loads(line)
-            except json.JSONDecodeError:
-                continue
-            if isinstance(r, dict) and r.get("kind") == KIND:
-                out.append(r)
-    return out
+    from .pretrain import json_objects
+
+    return [r for r in json_objects(paths) if r.get("kind") == KIND]
 
 
 def answer_examples(rows: list, tokenizer) -> list:

@@ -33,18 +33,21 @@ from .answer_rows import answer_examples, read_rows
 IGNORE = -100  # label of a token the loss skips
 
 
-def read_records(paths) -> list:
-    """Episode records from JSONL files (error records and unreadable lines skipped)."""
-    out = []
+def json_objects(paths):
+    """The JSON objects of JSONL files, line by line (unreadable lines and non-objects skipped)."""
     for p in paths:
         for line in Path(p).read_text().splitlines():
             try:
                 r = json.loads(line)
             except json.JSONDecodeError:
                 continue
-            if isinstance(r, dict) and "steps" in r and "error" not in r:
-                out.append(r)
-    return out
+            if isinstance(r, dict):
+                yield r
+
+
+def read_records(paths) -> list:
+    """Episode records from JSONL files (error records and unreadable lines skipped)."""
+    return [r for r in json_objects(paths) if "steps" in r and "error" not in r]
 
 
 def replay_views(domain, record):
