@@ -114,3 +114,56 @@ def test_sessions_keep_copies_of_the_pool_and_a_larger_batch_gets_a_larger_pool(
     for key in ("s0", "s1", "s2"):
         packed = b.sessions._items[key][1]
         assert packed.data.untyped_storage().data_ptr() != b.model.__dict__["_adapt_graphs"].kv.untyped_storage().data_ptr()
+
+
+def test_a_pass_that_would_outgrow_the_pool_runs_outside_the_graphs(domain, tiny, monkeypatch):
+    """Graphed passes pad each row's new tokens to a power of two, so a decode can need more columns than
+    its tokens: a pass the graphs do not take (here refused now and then) runs `forward` on the same
+    cache, and the actions stay those of the model's forward."""
+    from adaptbench.llm import batch_pass
+
+    ours, plain = _sharp(tiny, device=DEVICE), _sharp(tiny, device=DEVICE)
+    batch_pass.set_mode(ours.model, "graphs")
+    ours.model.__dict__["_adapt_lean"] = False
+    batch_pass.set_mode(plain.model, "hf")
+    refused = []
+    real = batch_pass.DecodeGraphs.takes
+
+    def tight(self, layers, most):
+        ok = real(self, layers, most) and layers[0].get_seq_length() % 7 != 3  # now and then: "no room"
+        refused.append(not ok)
+        return ok
+
+    monkeypatch.setattr(batch_pass.DecodeGraphs, "takes", tight)
+    assert _actions(domain, ours, 5) == _actions(domain, plain, 5)
+    assert any(refused) and not all(refused)
+
+
+def test_a_pool_layer_that_outgrows_the_pool_leaves_it_with_its_positions():
+    """Writing past the pool's capacity moves the layer to a buffer of its own, keeping every position;
+    the pool no longer holds it (so no graph replays over it)."""
+    import torch
+    from transformers import LlamaConfig, LlamaForCausalLM
+
+    from adaptbench.llm.batch_pass import DecodeGraphs
+
+    cfg = LlamaConfig(vocab_size=32, hidden_size=16, intermediate_size=32, num_hidden_layers=2,
+                      num_attention_heads=4, num_key_value_heads=2)
+    graphs = DecodeGraphs(LlamaForCausalLM(cfg).eval(), rows=2, capacity=8)
+    keys = torch.randn(2, 2, 6, 4)
+    layers = graphs.adopt([_Layer(keys, -keys) for _ in range(2)])
+    assert graphs.holds(layers) and graphs.takes(layers, 2) and not graphs.takes(layers, 3)
+    new = torch.randn(2, 2, 4, 4)
+    k, v = layers[0].update(new, -new)
+    assert k.shape[2] == 10 and torch.equal(k[:, :, :6], keys) and torch.equal(k[:, :, 6:], new)
+    assert torch.equal(v, -k) and not graphs.holds(layers)
+
+
+class _Layer:
+    """A cache layer as `DecodeGraphs.adopt` reads one."""
+
+    def __init__(self, keys, values):
+        self.keys, self.values = keys, values
+
+    def get_seq_length(self) -> int:
+        return self.keys.shape[2]

@@ -230,6 +230,12 @@ class DecodeGraphs:
             return PackedRow(self.kv[:, :, k, :, :n].clone())
         return PackedRow(self.kv[:, :, k].index_select(3, where.to(self.kv.device)))
 
+    def takes(self, layers: list, most: int) -> bool:
+        """Whether a pass of at most `most` new tokens a row runs as a graph: the layers are this pool's
+        and the pass's columns (`most` rounded up to a power of two) fit after their positions."""
+        return (most <= LONGEST and self.holds(layers)
+                and layers[0].get_seq_length() + bucket(most, 1) <= self.capacity)
+
     def holds(self, layers: list) -> bool:
         """Whether these layers are this pool's (still: a layer that outgrew it left)."""
         return all(isinstance(x, PoolLayer) and x.pooled(pk) for x, pk in zip(layers, self.k, strict=True))

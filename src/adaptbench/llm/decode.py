@@ -339,7 +339,7 @@ def decode(model, rows: list, sessions: Sessions, picker, stopped, pad_id: int =
     t0 = time.perf_counter()
     picker.start(list(range(len(rows))))  # the first masks need no prompt: computed while the prompts are read
     room = max(r.max_tokens for r in rows)
-    graphs = batch_pass.graphs_of(model, len(rows), max(len(r.prompt) for r in rows) + room)
+    graphs = batch_pass.graphs_of(model, len(rows), max(len(r.prompt) for r in rows) + 2 * room)  # room for padding
     read_rows, batch = prefill_rows(model, rows, sessions, pad_id, together, room, graphs)
     first, layers = zip(*read_rows, strict=True)
     reading = time.perf_counter() - t0
@@ -499,7 +499,7 @@ def _forward(model, cache, mask, new: list, read: list, pad_id: int, head=None, 
     dev = model.device
     if mask is None and len(new) == 1 and most == 1 and lean(model):  # one row, one token: the lean pass
         return _head(model, one_row.step(model, cache, new[0][0], read[0]), head), None
-    if most <= batch_pass.LONGEST and graphs is not None and graphs.holds(cache.layers):
+    if graphs is not None and graphs.takes(cache.layers, most):
         return graphs.step(cache.layers, new, read, mask)
     if mask is None and any(len(t) != most for t in new):
         mask = torch.ones((len(new), width), dtype=torch.long, device=cache.layers[0].keys.device)
