@@ -94,14 +94,6 @@ def stacked(model) -> list:
     return hit
 
 
-def _norm(module, x: torch.Tensor) -> torch.Tensor:
-    """LlamaRMSNorm, as the module computes it (float32 statistics, rounded back, then the weight)."""
-    dtype = x.dtype
-    x = x.float()
-    x = x * torch.rsqrt(x.pow(2).mean(-1, keepdim=True) + module.variance_epsilon)
-    return module.weight * x.to(dtype)
-
-
 def attention_bias(mask: torch.Tensor, new: int, dtype) -> torch.Tensor:
     """The additive attention mask [B, 1, new, T] of a pass over `new` tokens per row: `mask` [B, T]
     (1: a real position; the last `new` columns are the pass's own tokens) and causal among the new
@@ -136,12 +128,12 @@ def _layer(layer, w: Stacked, h: torch.Tensor, cos, sin, write, bias) -> torch.T
 
     attn, mlp = layer.self_attn, layer.mlp
     b, n, _ = h.shape
-    qkv = F.linear(_norm(layer.input_layernorm, h), w.qkv_w, w.qkv_b).split(w.split, dim=-1)
+    qkv = F.linear(layer.input_layernorm(h), w.qkv_w, w.qkv_b).split(w.split, dim=-1)
     q, k, v = (x.view(b, n, -1, attn.head_dim).transpose(1, 2) for x in qkv)
     q, k = apply_rotary_pos_emb(q, k, cos, sin)
     k, v = write(k, v)
     h = h + attn.o_proj(_attend(attn, q, k, v, bias))
-    gate, up = F.linear(_norm(layer.post_attention_layernorm, h), w.gu_w, w.gu_b).chunk(2, dim=-1)
+    gate, up = F.linear(layer.post_attention_layernorm(h), w.gu_w, w.gu_b).chunk(2, dim=-1)
     return h + mlp.down_proj(mlp.act_fn(gate) * up)
 
 
@@ -158,7 +150,7 @@ def forward(model, layers: list, ids: torch.Tensor, pos: torch.Tensor, bias) -> 
                               h.dtype)
     for layer, w, kv in zip(inner.layers, stacked(model), layers, strict=True):
         h = _layer(layer, w, h, cos, sin, kv.update, bias)
-    return _norm(inner.norm, h)[:, -1]
+    return inner.norm(h)[:, -1]
 
 
 ROWS_MIN, LENGTH_MIN = 1, 256  # the smallest buckets
@@ -292,7 +284,7 @@ class DecodeGraphs:
         cols = self.cols[:width]
         for layer, w, pk, pv in zip(inner.layers, stacked(model), self.k, self.v, strict=True):
             h = _layer(layer, w, h, cos, sin, _writer(pk[:rows], pv[:rows], cols, length), bias)
-        return model.get_output_embeddings()(_norm(inner.norm, h)[:, -1]).float()
+        return model.get_output_embeddings()(inner.norm(h)[:, -1]).float()
 
     def _capture(self, key) -> None:
         """Run the pass for this bucket (its output is this step's) and, on CUDA, capture it for replay."""
