@@ -21,9 +21,11 @@ hidden states equal the model forward's up to rounding (tested on the CPU in flo
 
 `DecodeGraphs` keeps one key/value pool per model ([layers, 2, rows, kv heads, capacity, d], allocated
 once) that a decode call's batch cache lives in, and captures the decoding pass for each (rows,
-length, new tokens) bucket once: each rounded up to a power of two, the rows past the batch reading
-nothing, the positions past a row's cache and a row's padding masked. A replay launches the whole pass
-at once (one CPU call for ~1,000 kernels). A session keeps its row of the pool as one `PackedRow` copy.
+length, new tokens) bucket once: each rounded up to a power of two (the rows past the batch compute
+garbage nobody reads), the positions past a row's cache and a row's padding masked. The pool also keeps
+which of its positions are real (`real`), so a pass's additive mask is made inside the graph: a
+pass's CPU work is one copy of its ids and positions from pinned memory and one replay, which
+launches the whole pass (one CPU call for ~1,000 kernels). A session keeps its row of the pool as one `PackedRow` copy.
 Reading a step's new prompt tokens (`decode.prefill_many`) runs `forward` on the same pool.
 """
 
@@ -31,6 +33,7 @@ from __future__ import annotations
 
 import os
 
+import numpy as np
 import torch
 import torch.nn.functional as F
 
@@ -108,14 +111,24 @@ def attention_bias(mask: torch.Tensor, new: int, dtype) -> torch.Tensor:
     return out
 
 
+def grouped_bias(bias, heads: int, kv_heads: int, new: int):
+    """`attention_bias` [B, 1, L, T] repeated for the query heads folded into the query length (`_attend`):
+    [B, 1, groups x L, T]; once per pass, not per layer (None and one-token passes need no repeat)."""
+    groups = heads // kv_heads
+    if bias is None or groups == 1 or new == 1:
+        return bias
+    return bias.repeat(1, 1, groups, 1)
+
+
 def _attend(attn, q: torch.Tensor, k: torch.Tensor, v: torch.Tensor, bias) -> torch.Tensor:
     """SDPA with the query heads that share a key/value head folded into the query length: q [B, H, L,
-    d], k and v [B, Hkv, T, d], bias [B, 1, L, T] or None; returns [B, L, H * d]."""
+    d], k and v [B, Hkv, T, d], bias [B, 1, groups x L or 1 or L, T] (`grouped_bias`) or None; returns
+    [B, L, H * d]."""
     b, h, n, d = q.shape
     kv = k.shape[1]
     groups = h // kv
     q = q.reshape(b, kv, groups * n, d)
-    if bias is not None and groups > 1 and n > 1:
+    if bias is not None and groups > 1 and n > 1 and bias.shape[2] != groups * n:
         bias = bias.repeat(1, 1, groups, 1)
     o = F.scaled_dot_product_attention(q, k, v, attn_mask=bias, dropout_p=0.0, scale=attn.scaling)
     return o.reshape(b, h, n, d).transpose(1, 2).reshape(b, n, h * d)
@@ -148,9 +161,31 @@ def forward(model, layers: list, ids: torch.Tensor, pos: torch.Tensor, bias) -> 
         t = layers[0].get_seq_length() + ids.shape[1]
         bias = attention_bias(torch.ones((ids.shape[0], t), dtype=torch.long, device=ids.device), ids.shape[1],
                               h.dtype)
+    bias = _grouped(model, bias, ids.shape[1])
     for layer, w, kv in zip(inner.layers, stacked(model), layers, strict=True):
         h = _layer(layer, w, h, cos, sin, kv.update, bias)
     return inner.norm(h)[:, -1]
+
+
+def _grouped(model, bias, new: int):
+    """`grouped_bias` for the model's heads."""
+    cfg = model.config
+    return grouped_bias(bias, cfg.num_attention_heads, cfg.num_key_value_heads or cfg.num_attention_heads, new)
+
+
+def right_aligned(chunks: list, starts: list, pad_id: int, width: int | None = None) -> tuple:
+    """Rows' new tokens right-aligned and left-padded to the longest (or `width`): (ids, position ids
+    from each row's `start`, attention-mask tail with 0 on the padding), each [B, longest] int64, on the
+    CPU (built in numpy: one pass per decoding token calls this for every row)."""
+    lens = np.fromiter((len(c) for c in chunks), dtype=np.int64, count=len(chunks))
+    most = width or int(lens.max())
+    first = most - lens  # each row's first real column
+    col = np.arange(most, dtype=np.int64)
+    real = col[None, :] >= first[:, None]
+    ids = np.full((len(chunks), most), pad_id, dtype=np.int64)
+    ids[real] = np.fromiter((t for c in chunks for t in c), dtype=np.int64, count=int(lens.sum()))
+    pos = np.where(real, np.asarray(starts, dtype=np.int64)[:, None] + col[None, :] - first[:, None], 0)
+    return torch.from_numpy(ids), torch.from_numpy(pos), torch.from_numpy(real.astype(np.int64))
 
 
 ROWS_MIN, LENGTH_MIN = 1, 256  # the smallest buckets
@@ -175,10 +210,15 @@ class DecodeGraphs:
         self.kv = torch.zeros((len(model.model.layers), 2, rows, heads, capacity, dim), dtype=dtype, device=dev)
         self.k = [self.kv[i, 0] for i in range(self.kv.shape[0])]  # per layer [rows, heads, capacity, dim]
         self.v = [self.kv[i, 1] for i in range(self.kv.shape[0])]
-        self.ids = torch.zeros((rows, LONGEST), dtype=torch.long, device=dev)
-        self.pos = torch.zeros((rows, LONGEST), dtype=torch.long, device=dev)
+        # a pass's inputs: ids, positions and the new columns' realness [3, rows, LONGEST], and the pass's
+        # first cache column (at [1, 0, LONGEST]), written on the host (pinned on CUDA) and copied in once
+        self.host = torch.zeros((3, rows, LONGEST + 1), dtype=torch.long, pin_memory=dev.type == "cuda")
+        self.staged = torch.zeros((3, rows, LONGEST + 1), dtype=torch.long, device=dev)
+        self.ids, self.pos, self.tail = (self.staged[i, :, :LONGEST] for i in range(3))
         self.cols = torch.zeros((LONGEST,), dtype=torch.long, device=dev)
-        self.bias = torch.full((rows, 1, LONGEST, capacity), torch.finfo(dtype).min, dtype=dtype, device=dev)
+        self.span = torch.arange(capacity, device=dev)
+        self.real = torch.zeros((rows, capacity), dtype=torch.bool, device=dev)  # which cache positions are real
+        self.copied = torch.cuda.Event() if dev.type == "cuda" else None  # the last copy of `host` is done
         self.out: dict = {}  # (rows, length, width) -> logits [rows, V] the graph writes
         self.graphs: dict = {}  # (rows, length, width) -> torch.cuda.CUDAGraph
         self.pool = torch.cuda.graph_pool_handle() if dev.type == "cuda" else None
@@ -236,11 +276,12 @@ class DecodeGraphs:
         """A pass over each row's new tokens (`new`: 1 to `LONGEST` per row, right-aligned and padded
         to a power of two), row r's first at position `starts[r]`, over the pool's layers; `mask` [B, n]
         of the cached positions (None: all real). Returns (logits [B, V] (float32; a view valid until
-        the next step), the mask after the pass: None while no position is padding)."""
+        the next step), the mask after the pass: None while no position is padding, else a view of the
+        pool's `real` positions, valid until the next step)."""
         b, n = len(new), layers[0].get_seq_length()
         width = bucket(max(len(t) for t in new), 1)
         key = (min(bucket(b, ROWS_MIN), self.rows), min(bucket(n + width, LENGTH_MIN), self.capacity), width)
-        after = self._inputs(key, new, starts, mask, n)
+        padded = self._inputs(key, new, starts, mask, n)
         if key not in self.out:
             self._capture(key)
         elif self.pool is not None:
@@ -249,39 +290,42 @@ class DecodeGraphs:
             self.out[key] = self._pass(*key)
         for layer in layers:
             layer.grew(width)
+        after = self.real[:b, :n + width] if mask is not None or padded else None
         return self.out[key][:b], after
 
-    def _inputs(self, key, new: list, starts: list, mask, n: int):
-        """Write a pass's inputs into the graphs' static tensors; returns the mask after the pass."""
-        from .decode import _right_aligned
-
+    def _inputs(self, key, new: list, starts: list, mask, n: int) -> bool:
+        """Write a pass's inputs into the graphs' static tensors (one copy from the host) and the cached
+        positions' realness into `real`; returns whether any new column is padding."""
         rows, length, width = key
-        b, dev = len(new), self.ids.device
-        ids, pos, tail = _right_aligned(new, starts, 0, width)
-        self.ids[:b, :width] = ids.to(dev)
-        self.pos[:b, :width] = pos.to(dev)
-        self.ids[b:rows, :width] = 0
-        self.pos[b:rows, :width] = 0
-        self.cols[:width] = torch.arange(n, n + width, device=dev)
-        tail = tail.to(dev)
-        if mask is None and bool(tail.all()):
-            after = None
-            full = torch.ones((b, n + width), dtype=torch.long, device=dev)
-        else:
-            before = mask if mask is not None else torch.ones((b, n), dtype=torch.long, device=dev)
-            after = full = torch.cat([before.to(dev), tail], dim=1)
-        bias = self.bias[:rows, :, :width, :length]
-        bias.fill_(torch.finfo(bias.dtype).min)
-        bias[:b, :, :, :n + width] = attention_bias(full, width, bias.dtype)
-        return after
+        b = len(new)
+        ids, pos, tail = right_aligned(new, starts, 0, width)
+        host = self.host
+        if self.copied is not None:
+            self.copied.synchronize()  # the previous pass's inputs have left the host buffer
+        host[0, :b, :width], host[1, :b, :width], host[2, :b, :width] = ids, pos, tail
+        host[:, b:rows, :width] = 0
+        host[1, 0, LONGEST] = n
+        self.staged[:, :rows].copy_(host[:, :rows], non_blocking=True)
+        if self.copied is not None:
+            self.copied.record()
+        if mask is None:
+            self.real[:b, :n] = True
+        elif mask.data_ptr() != self.real.data_ptr() or mask.stride() != self.real[:b, :n].stride():
+            self.real[:b, :n] = mask.to(self.real.device).bool()
+        return not bool(tail.all())
 
     def _pass(self, rows: int, length: int, width: int) -> torch.Tensor:
-        """The pass over `width` new tokens of the pool's first `rows` rows attending to `length` positions."""
+        """The pass over `width` new tokens of the pool's first `rows` rows attending to `length`
+        positions: the new columns' realness and the additive mask are made inside it, from `staged`."""
         model, inner = self.model, self.model.model
+        cols = self.cols[:width]
+        torch.add(self.span[:width], self.staged[1, 0, LONGEST], out=cols)
+        self.real[:rows].index_copy_(1, cols, self.tail[:rows, :width].bool())
+        allowed = self.real[:rows, None, None, :length] & (self.span[:length] <= cols[:, None])
+        bias = torch.where(allowed, 0.0, torch.finfo(model.dtype).min).to(model.dtype)
+        bias = _grouped(model, bias, width)
         h = inner.embed_tokens(self.ids[:rows, :width])
         cos, sin = inner.rotary_emb(h, self.pos[:rows, :width])
-        bias = self.bias[:rows, :, :width, :length]
-        cols = self.cols[:width]
         for layer, w, pk, pv in zip(inner.layers, stacked(model), self.k, self.v, strict=True):
             h = _layer(layer, w, h, cos, sin, _writer(pk[:rows], pv[:rows], cols, length), bias)
         return model.get_output_embeddings()(inner.norm(h)[:, -1]).float()

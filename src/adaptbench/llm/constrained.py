@@ -185,19 +185,22 @@ class GrammarProcessor(LogitsProcessor):
         return limit is not None and limit - (step[row] if isinstance(step, dict) else step) <= self.reserve
 
     def _close(self, rows, scores: torch.Tensor, step=None, at=None) -> None:
+        """Keep only the closing tokens of the rows near their limit whose masks allow one (the rows'
+        logits in `scores` at `at[i]`, else at i): one batched operation, no transfer to the host."""
         if self.closing is None:
             return
         step = self.steps if step is None else step
-        for i in rows:
-            if not self._near_limit(i, step):
-                continue
-            r = i if at is None else at[i]
-            keep = self.closing.to(scores.device)
-            allowed = scores[r, keep] > float("-inf")
-            if bool(allowed.any()):
-                row = torch.full_like(scores[r], float("-inf"))
-                row[keep] = scores[r, keep]
-                scores[r] = row
+        near = [i if at is None else at[i] for i in rows if self._near_limit(i, step)]
+        if not near:
+            return
+        idx = torch.tensor(near, dtype=torch.long, device=scores.device)
+        keep = self.closing.to(scores.device)
+        sub = scores[idx]
+        closing = sub[:, keep]
+        can = (closing > float("-inf")).any(dim=1, keepdim=True)
+        only = torch.full_like(sub, float("-inf"))
+        only[:, keep] = closing
+        scores[idx] = torch.where(can, only, sub)
 
     # The generation loop's interface (`decode.decode`): rows are named by their index in the request
     # list, logits rows by their place among the rows still running.
@@ -241,9 +244,10 @@ class GrammarProcessor(LogitsProcessor):
             return
         vocab = logits.shape[1]
         same = len(live) == len(rows) and list(live) == list(rows)
-        words = self.bitmask if same and len(rows) == self.bitmask.shape[0] else \
-            self.bitmask[torch.tensor(live, dtype=torch.long)]
-        forbidden = ~unpack_bits(words.to(logits.device), vocab)  # unpacked where the logits are
+        words = self._words(logits.device)
+        if not (same and len(rows) == self.bitmask.shape[0]):
+            words = words[torch.tensor(live, dtype=torch.long, device=words.device)]
+        forbidden = ~unpack_bits(words, vocab)  # unpacked where the logits are
         if same:  # every row constrained, in order: mask in place
             logits.masked_fill_(forbidden, float("-inf"))
         else:
@@ -253,6 +257,15 @@ class GrammarProcessor(LogitsProcessor):
         if self.closing is not None and any(self._near_limit(i, step) for i in live):
             self._close(live, logits, step, {i: k for k, i in enumerate(rows)})
         self.masked_steps += 1
+
+    def _words(self, device) -> torch.Tensor:
+        """The bitmask on `device`: on a GPU copied whole from pinned memory without waiting (the next
+        `fill` comes after the picked tokens reach the host, so after this copy)."""
+        if device.type == "cpu":
+            return self.bitmask
+        if not self.bitmask.is_pinned():
+            self.bitmask = self.bitmask.pin_memory()
+        return self.bitmask.to(device, non_blocking=True)
 
     def forced(self, live) -> dict:
         """{row: token} for the rows of `live` (rows `fill` just computed) whose mask allows exactly one

@@ -219,7 +219,7 @@ def prefill_many(model, rows: list, layers: list, pad_id: int = 0, room: int = 0
     cached = [r.reused for r in rows]
     width, most = max(cached), max(len(r.prompt) - r.reused for r in rows)
     cache, mask = _stack(model, layers, cached, most + room, graphs)
-    ids, pos, tail = _right_aligned([r.prompt[r.reused:] for r in rows], cached, pad_id)
+    ids, pos, tail = batch_pass.right_aligned([r.prompt[r.reused:] for r in rows], cached, pad_id)
     dev = model.device
     mask = torch.cat([mask, tail.to(mask.device)], dim=1)
     if batch_pass.mode(model) != "hf":
@@ -509,7 +509,7 @@ def _forward(model, cache, mask, new: list, read: list, pad_id: int, head=None, 
         if mask is not None:
             mask = torch.cat([mask, mask.new_ones((mask.shape[0], 1))], dim=1)
     else:
-        ids, pos, tail = _right_aligned(new, read, pad_id)
+        ids, pos, tail = batch_pass.right_aligned(new, read, pad_id)
         ids, pos = ids.to(dev), pos.to(dev)
         if mask is not None:
             mask = torch.cat([mask, tail.to(mask.device)], dim=1)
@@ -520,21 +520,6 @@ def _forward(model, cache, mask, new: list, read: list, pad_id: int, head=None, 
         logits = _logits(model, head, input_ids=ids, attention_mask=mask, position_ids=pos, use_cache=True,
                          cache=cache, cache_position=torch.arange(width, width + most, device=dev))
     return logits, mask
-
-
-def _right_aligned(chunks: list, starts: list, pad_id: int, width: int | None = None) -> tuple:
-    """Rows' new tokens right-aligned and left-padded to the longest (or `width`): (ids, position ids
-    from each row's `start`, attention-mask tail with 0 on the padding), each [B, longest], on the CPU."""
-    most = width or max(len(c) for c in chunks)
-    ids = torch.full((len(chunks), most), pad_id, dtype=torch.long)
-    pos = torch.zeros((len(chunks), most), dtype=torch.long)
-    tail = torch.zeros((len(chunks), most), dtype=torch.long)
-    for k, (tokens, start) in enumerate(zip(chunks, starts, strict=True)):
-        n = len(tokens)
-        ids[k, most - n:] = torch.tensor(tokens, dtype=torch.long)
-        pos[k, most - n:] = torch.arange(start, start + n)
-        tail[k, most - n:] = 1
-    return ids, pos, tail
 
 
 def loop_supported(model) -> bool:
