@@ -109,12 +109,19 @@ class Sessions:
 
 
 def common_prefix(a: list, b: list) -> int:
-    """Length of the longest common prefix of two token lists."""
+    """Length of the longest common prefix of two token lists (compared a slice at a time: a session's
+    tokens are most often a whole prefix of the next prompt, found by one comparison)."""
     n = min(len(a), len(b))
-    i = 0
-    while i < n and a[i] == b[i]:
-        i += 1
-    return i
+    if a[:n] == b[:n]:
+        return n
+    lo, hi = 0, n  # a[:lo] == b[:lo] and a[:hi] != b[:hi]
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if a[lo:mid] == b[lo:mid]:
+            lo = mid
+        else:
+            hi = mid
+    return lo
 
 
 GQA_FLAG = "TRANSFORMERS_SDPA_FORCE_GQA"
