@@ -168,12 +168,3 @@ class _Layer:
     def get_seq_length(self) -> int:
         return self.keys.shape[2]
 
-
-def test_graphed_passes_attend_to_at_most_half_as_many_again_as_the_cache():
-    pytest.importorskip("torch")
-    from adaptbench.llm.batch_pass import LENGTH_MIN, length_bucket
-
-    for n in range(1, 9000, 7):
-        b = length_bucket(n)
-        assert b >= max(n, LENGTH_MIN) and b % 16 == 0
-        assert n <= LENGTH_MIN or b <= n * 3 / 2 + 16

@@ -197,19 +197,6 @@ def bucket(n: int, least: int) -> int:
     return max(least, 1 << max(0, n - 1).bit_length())
 
 
-def length_bucket(n: int) -> int:
-    """The positions a graphed pass attends to for `n` cached and new ones: `n` rounded up to a power of
-    two or one and a half times one (256, 384, 512, 768, 1024, ...), at least `LENGTH_MIN`. Decoding
-    attention reads every bucketed position, ~1.5 µs per 1,000 positions a layer for the 135M shape at
-    64 rows on an H200 (bench/attn_shapes.py): a power of two reads up to twice the cache (a third more
-    on average over lengths), this at most half as much again (a sixth more on average), for two graphs
-    an octave instead of one."""
-    if n <= LENGTH_MIN:
-        return LENGTH_MIN
-    half = 1 << max(0, (n - 1).bit_length() - 2)  # a quarter of the power of two at least n
-    return -(-n // (2 * half)) * (2 * half) if n > 3 * half else 3 * half
-
-
 class DecodeGraphs:
     """A model's key/value pool and its captured one-token passes (see the module's docstring). `rows`
     and `capacity` (positions) size the pool; a batch that does not fit decodes on its own buffers
@@ -293,7 +280,7 @@ class DecodeGraphs:
         pool's `real` positions, valid until the next step)."""
         b, n = len(new), layers[0].get_seq_length()
         width = bucket(max(len(t) for t in new), 1)
-        key = (min(bucket(b, ROWS_MIN), self.rows), min(length_bucket(n + width), self.capacity), width)
+        key = (min(bucket(b, ROWS_MIN), self.rows), min(bucket(n + width, LENGTH_MIN), self.capacity), width)
         padded = self._inputs(key, new, starts, mask, n)
         if key not in self.out:
             self._capture(key)
