@@ -122,14 +122,10 @@ def grouped_bias(bias, heads: int, kv_heads: int, new: int):
 
 def _attend(attn, q: torch.Tensor, k: torch.Tensor, v: torch.Tensor, bias) -> torch.Tensor:
     """SDPA with the query heads that share a key/value head folded into the query length: q [B, H, L,
-    d], k and v [B, Hkv, T, d], bias [B, 1, groups x L or 1 or L, T] (`grouped_bias`) or None; returns
-    [B, L, H * d]."""
+    d], k and v [B, Hkv, T, d], bias [B, 1, groups x L, T] (`grouped_bias`; [B, 1, 1, T] for one
+    token) or None; returns [B, L, H * d]."""
     b, h, n, d = q.shape
-    kv = k.shape[1]
-    groups = h // kv
-    q = q.reshape(b, kv, groups * n, d)
-    if bias is not None and groups > 1 and n > 1 and bias.shape[2] != groups * n:
-        bias = bias.repeat(1, 1, groups, 1)
+    q = q.reshape(b, k.shape[1], h // k.shape[1] * n, d)
     o = F.scaled_dot_product_attention(q, k, v, attn_mask=bias, dropout_p=0.0, scale=attn.scaling)
     return o.reshape(b, h, n, d).transpose(1, 2).reshape(b, n, h * d)
 
