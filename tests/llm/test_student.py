@@ -107,3 +107,17 @@ def test_train_commands_take_the_shipped_students_name():
     args = SimpleNamespace(student="student", teacher_model=None, workers=1, device="cpu", backend="transformers")
     _check_data_args(args)
     assert args.student == str(named_path("student"))
+
+
+def test_training_refuses_a_device_it_cannot_train_on(tmp_path, capsys):
+    torch = pytest.importorskip("torch")
+    from adaptbench.cli import main
+
+    out = str(tmp_path / "st")
+    assert main(["model", "student", "--out", out, "--device", "cuda:1"]) == 2
+    assert "training runs on cpu or cuda" in capsys.readouterr().err
+    if not torch.cuda.is_available():
+        assert main(["model", "pretrain", "--model", "student", "--data", __file__, "--out", out,
+                     "--device", "cuda"]) == 2
+        assert "--device cuda" in capsys.readouterr().err
+    assert not Path(out).exists()

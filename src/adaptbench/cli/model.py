@@ -8,6 +8,9 @@ from pathlib import Path
 
 from ..install import install_hint
 
+DEVICE_HELP = ("where the model trains: cpu (default), or cuda on a GPU machine (float32 weights either way; "
+               "a run resumes on either)")
+
 
 def add_rollout_options(p) -> None:
     """The model options of `adapt rollout` (used by the LLM agents only) and the step budget (every agent)."""
@@ -211,6 +214,18 @@ def _cmd_model_init(args) -> int:
     return 0
 
 
+def _check_train_device(device: str) -> None:
+    """Exit with a message when training cannot run on `device` (cpu or cuda; a CUDA build and a GPU)."""
+    from ..llm.backend import ModelError, check_device
+
+    if device not in ("cpu", "cuda"):
+        _fail(f"--device {device}: training runs on cpu or cuda (choose the GPU with CUDA_VISIBLE_DEVICES)")
+    try:
+        check_device(device)
+    except ModelError as exc:
+        _fail(str(exc))
+
+
 def _cmd_model_pretrain(args) -> int:
     import glob
 
@@ -226,10 +241,11 @@ def _cmd_model_pretrain(args) -> int:
         _fail(f"--model {args.model}: not a directory")
     if args.save_every < 1:
         _fail(f"--save-every must be at least 1, not {args.save_every}")
+    _check_train_device(args.device)
     try:
         info = pretrain(load_domain(args.spec), args.model, paths, args.out, steps=args.steps, lr=args.lr,
                         budget=args.budget, seed=args.seed, checkpoints=args.checkpoints, save_every=args.save_every,
-                        log=(lambda m: None) if args.quiet else (lambda m: print(m, file=sys.stderr)))
+                        device=args.device, log=(lambda m: None) if args.quiet else (lambda m: print(m, file=sys.stderr)))
     except ImportError as exc:
         _fail(f"{exc}; install the train extra: {install_hint('train')}")
     except SpecError:
@@ -255,11 +271,12 @@ def _cmd_model_student(args) -> int:
                             oracle_seeds=_seeds_or_none(args.oracle_seeds, parse_seeds),
                             pair_seeds=_seeds_or_none(args.pair_seeds, parse_seeds), hidden=args.hidden,
                             layers=args.layers, steps=args.steps, lr=args.lr, seed=args.seed, workers=args.workers,
-                            save_every=args.save_every, init=_init_model(args.init))
+                            save_every=args.save_every, init=_init_model(args.init), device=args.device)
     except ValueError as exc:
         _fail(str(exc))
     if min(args.steps, args.workers, args.save_every) < 1:
         _fail("--steps, --workers and --save-every must be at least 1")
+    _check_train_device(args.device)
     if not s.ask_seeds and not s.oracle_seeds and not s.pair_seeds:
         _fail("--ask-seeds, --oracle-seeds and --pair-seeds are all none: give one of them scene seeds "
               "(e.g. --oracle-seeds 100)")
@@ -341,6 +358,7 @@ def _add_student_command(msub) -> None:
     q.add_argument("--save-every", type=int, default=d.save_every,
                    help=f"save a resumable training checkpoint to OUT/trainer every N updates (default {d.save_every}); "
                         "run the same command again after a kill to resume there")
+    q.add_argument("--device", default=d.device, help=DEVICE_HELP)
     q.add_argument("--quiet", action="store_true")
     q.set_defaults(func=_cmd_model_student)
 
@@ -429,6 +447,7 @@ def add_commands(sub) -> None:
                                          "resume from the newest one (default: none, a kill starts over)")
     q.add_argument("--save-every", type=int, default=200,
                    help="with --checkpoints: save one every N updates (default 200)")
+    q.add_argument("--device", default="cpu", help=DEVICE_HELP)
     q.add_argument("--quiet", action="store_true")
     q.set_defaults(func=_cmd_model_pretrain)
     _add_student_command(msub)

@@ -295,7 +295,7 @@ def _checkpoint_callback(every: int, steps: int, on_checkpoint):
 
 def pretrain(domain, model_dir, data_paths, out, steps: int = 2000, lr: float = 3e-3, budget: int | None = None,
              seed: int = 0, threads: int = 1, log=print, every: int | None = None, on_checkpoint=None,
-             checkpoints=None, save_every: int | None = None) -> PretrainResult:
+             checkpoints=None, save_every: int | None = None, device: str = "cpu") -> PretrainResult:
     """Fine-tune the model in `model_dir` on the records in `data_paths` with TRL's `SFTTrainer`
     (completion-only loss on the actions); save the model and tokenizer to `out`. With `every` and
     `on_checkpoint`, `on_checkpoint(update, model, loss)` runs every `every` updates and after the last
@@ -303,7 +303,8 @@ def pretrain(domain, model_dir, data_paths, out, steps: int = 2000, lr: float = 
     (a directory), the trainer's state is saved there every `save_every` updates (default: `every`, else
     200) and a rerun with the same settings resumes from the newest complete checkpoint, or returns the
     finished run's result without training (see the module docstring); ValueError when the directory
-    holds another run's checkpoints."""
+    holds another run's checkpoints. `device`: where the trainer trains (cpu, or cuda: the trainer's
+    own device choice, float32 weights either way); a run may resume on another device."""
     import time
 
     import torch
@@ -337,7 +338,7 @@ def pretrain(domain, model_dir, data_paths, out, steps: int = 2000, lr: float = 
     if start is not None:
         log(f"resuming from update {resumed} of {steps} ({start})")
     with _trainer_dir(checkpoints) as folder:
-        args = sft_config(folder, steps, lr, seed, log_every=1,
+        args = sft_config(folder, steps, lr, seed, log_every=1, device=device,
                           save_every=(save_every or every or 200) if checkpoints is not None else None)
         trainer = SFTTrainer(model=model, args=args, train_dataset=completion_dataset(data), processing_class=tok,
                              callbacks=[_log_callback(log, steps)]

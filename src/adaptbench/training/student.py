@@ -47,6 +47,7 @@ class StudentSettings:
     save_every: int = 200  # a resumable checkpoint of the training (OUT/trainer) every this many updates
     tasks: tuple = field(default=())  # empty: every task
     init: str = ""  # a model directory to continue from (its tokenizer and weights); empty: a new tiny model
+    device: str = "cpu"  # where the model trains (cpu; cuda on a GPU machine)
 
     def agents(self) -> tuple:
         """(agent, seeds) of the teacher trajectories (an agent with no seeds left out)."""
@@ -98,7 +99,7 @@ def build_student(domain, out, s: StudentSettings = StudentSettings(), log=print
     base = Path(s.init) if s.init else init_tiny(domain, out / "init", seed=s.seed, vocab_size=s.vocab,
                                                   hidden=s.hidden, layers=s.layers)
     r = pretrain(domain, base, files, out, steps=s.steps, lr=s.lr, seed=s.seed, log=log, checkpoints=out / "trainer",
-                 save_every=s.save_every)
+                 save_every=s.save_every, device=s.device)
     before = _init_info(s.init)
     seeds = {*s.ask_seeds, *s.oracle_seeds, *s.pair_seeds, *before.get("scene_seeds", ())}
     info = {"settings": asdict(s), "split": s.split, "teachers": [a for a, _ in s.agents()], "scene_seeds": sorted(seeds),
@@ -106,7 +107,7 @@ def build_student(domain, out, s: StudentSettings = StudentSettings(), log=print
             "data": [str(f.relative_to(out)) for f in files],
             "pretrain": asdict(r), "seconds": {"data": round(t_data, 1), "pretrain": round(r.seconds, 1),
                                                "total": round(time.perf_counter() - t0, 1)},
-            "machine": f"{platform.machine()}, torch 1 thread"}
+            "machine": f"{platform.machine()}, " + ("torch 1 thread" if s.device == "cpu" else s.device)}
     (out / "student.json").write_text(json.dumps(info, indent=1) + "\n")
     return info
 
