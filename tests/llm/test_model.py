@@ -125,3 +125,18 @@ def test_scores_match_an_unbatched_forward_pass(domain, backend):
         assert s.logprobs == pytest.approx(want, abs=2e-4)
         assert 0 < s.mean_prob < 1
     assert got[0].mean_prob == pytest.approx(sum(torch.tensor(got[0].logprobs).exp().tolist()) / 4)
+
+
+def test_loading_a_model_freezes_the_heap_and_the_model_is_still_freed(tiny):
+    """`hf.settle_heap`: what is alive after loading is kept out of the cyclic collector's scans, and a
+    dropped backend and model are freed all the same (no reference cycles hold them)."""
+    import gc
+    import weakref
+
+    from adaptbench.llm.hf import TransformersBackend
+
+    backend = TransformersBackend(str(tiny))
+    assert gc.get_freeze_count() > 0
+    model, dropped = weakref.ref(backend.model), weakref.ref(backend)
+    del backend
+    assert model() is None and dropped() is None
