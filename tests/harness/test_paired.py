@@ -1,5 +1,5 @@
 """`adapt eval --paired METHOD`: every method's satisfaction minus METHOD's on the same (split, persona, task,
-scene seed), mean ± standard error of the per-episode difference, seen and unseen apart; sample seeds of one
+scene seed), mean ± standard error of the per-episode difference clustered by scene, seen and unseen apart; sample seeds of one
 episode averaged; an unknown METHOD is one line and exit 2."""
 
 from __future__ import annotations
@@ -75,3 +75,21 @@ def test_cli_paired_and_an_unknown_method(tmp_path, capsys):
     assert "Table 1" not in captured.out  # refused before any table
     err = [line for line in captured.err.strip().splitlines() if "predate" not in line]
     assert len(err) == 1 and "--paired dpo" in err[0] and "always-ask, planner" in err[0]
+
+
+def test_personas_of_one_scene_are_not_independent_draws():
+    """The standard error is clustered by scene (split, task, seed): four personas that share a scene, and
+    a model that acts the same for all of them, count as one draw, not four."""
+    personas = ("leila", "lisa", "mark", "samantha")
+    diffs = {0: 0.4, 1: 0.0, 2: 0.2, 3: -0.2}  # one difference per scene, shared by its four personas
+    recs = [_rec("planner", p, 0.2, seed=s) for p in personas for s in diffs]
+    recs += [_rec("sft", p, 0.2 + d, seed=s) for p in personas for s, d in diffs.items()]
+    unseen = {0: personas}
+    row = paired(recs, "planner", unseen)[0]
+    assert (row.n, row.scenes) == (16, 4) and row.mean == pytest.approx(0.1)
+    per_scene = math.sqrt(sum((d - 0.1) ** 2 for d in diffs.values()) / 3 / 4)  # four draws, not sixteen
+    assert row.se == pytest.approx(per_scene)
+    one_scene = [r for r in recs if r.seed == 0]
+    row = paired(one_scene, "planner", unseen)[0]
+    assert (row.n, row.scenes, row.se) == (4, 1, 0.0) and not row.clear  # no spread to judge a difference by
+    assert "Scenes" in render_text(paired(recs, "planner", unseen), "planner")

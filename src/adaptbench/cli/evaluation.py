@@ -169,8 +169,8 @@ def add_options(p) -> None:
     p.add_argument("--paper", action="store_true", help="print the paper's published numbers beside ours")
     p.add_argument("--paired", metavar="METHOD",
                    help="also compare every method with METHOD on the same episodes (split, persona, task, scene "
-                        "seed): the mean per-episode satisfaction difference ± its standard error, e.g. --paired "
-                        "planner for trained models against their base")
+                        "seed): the mean per-episode satisfaction difference ± its standard error clustered by "
+                        "scene, e.g. --paired planner for trained models against their base")
     p.add_argument("--pass-k", type=ks, metavar="K[,K...]",
                    help="the k of pass^k (default: 1 and the most scene seeds every method, persona and task has)")
     p.add_argument("--plot-temporal", metavar="PATH",
