@@ -1,7 +1,7 @@
 """Models shipped inside the package, named instead of given as a directory: `--model student` is the
-base student that cooks (behaviour-cloned on the oracle's episodes of split 0's training personas;
-`adapt model curve` built it, docs/training.md), at
-`adaptbench/checkpoints/student/`. A path that exists always wins over a name."""
+base student that cooks (behaviour-cloned on the oracle's episodes of split 0's training personas:
+`adapt model curve` built it and `adapt model student --init` continued it on new scenes, docs/training.md;
+its `student.json` holds the provenance), at `adaptbench/checkpoints/student/`. A path that exists always wins over a name."""
 
 from __future__ import annotations
 
