@@ -220,8 +220,12 @@ def _check_train_device(device: str) -> None:
 
     if device not in ("cpu", "cuda"):
         _fail(f"--device {device}: training runs on cpu or cuda (choose the GPU with CUDA_VISIBLE_DEVICES)")
+    if device == "cpu":
+        return  # torch may not be installed yet: the command says so where it needs it
     try:
         check_device(device)
+    except ImportError as exc:
+        _fail(f"{exc}; install the train extra: {install_hint('train')}")
     except ModelError as exc:
         _fail(str(exc))
 
