@@ -216,12 +216,12 @@ def _cmd_model_init(args) -> int:
 
 def _check_train_device(device: str) -> None:
     """Exit with a message when training cannot run on `device` (cpu or cuda; a CUDA build and a GPU)."""
-    from ..llm.backend import ModelError, check_device
-
     if device not in ("cpu", "cuda"):
         _fail(f"--device {device}: training runs on cpu or cuda (choose the GPU with CUDA_VISIBLE_DEVICES)")
     if device == "cpu":
         return  # torch may not be installed yet: the command says so where it needs it
+    from ..llm.backend import ModelError, check_device
+
     try:
         check_device(device)
     except ImportError as exc:
