@@ -21,6 +21,7 @@ examples:
   adapt replay --task eggs --persona juan --full-scene actions.txt --json
   adapt view runs/demo.jsonl --out report.html   the episodes as one HTML page
   adapt probe answers --model student       does the model's next action follow the user's answer?
+  adapt probe tasks --model student         does its first action follow the task?
 """
 
 

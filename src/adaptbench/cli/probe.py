@@ -1,4 +1,5 @@
-"""`adapt probe answers`: whether a model's next action follows the user's answer (llm/probe.py, docs/llm.md)."""
+"""`adapt probe answers`: whether a model's next action follows the user's answer (llm/probe.py, docs/llm.md);
+`adapt probe tasks`: whether its first action follows the task (llm/task_probe.py)."""
 
 from __future__ import annotations
 
@@ -85,11 +86,48 @@ def _cmd_answers(args) -> int:
     return 0
 
 
+def _cmd_tasks(args) -> int:
+    from ..compiler import load_domain
+    from ..llm.probe import backend_scorer
+    from ..llm.task_probe import probe_tasks
+    from ..progress import progress_bar
+    from .model import _backend, resolve_model
+    from .runs import _names, _seeds
+
+    _check_models(args.model)
+    domain = load_domain(args.spec)
+    tasks = _names(args.tasks, domain.task, "task") or list(domain.task)
+    if len(tasks) < 2:
+        print("adapt: --tasks needs at least two tasks (the probe tells tasks apart)", file=sys.stderr)
+        return 2
+    personas = _names(args.personas, domain.persona, "persona") or list(domain.persona)
+    seeds = _seeds(args.seeds)
+    rows = []
+    for model in args.model:
+        backend = _backend(args, resolve_model(model))
+        with progress_bar(len(personas) * len(seeds), f"probe {model}", enabled=not args.quiet) as bar:
+            result = probe_tasks(backend_scorer(backend), domain, personas, seeds, tasks, lambda d, t: bar.update())
+        rows.append({"model": model, **result.summary()})
+    if args.json:
+        print(json.dumps({"personas": personas, "seeds": list(seeds), "models": rows}, indent=1))
+        return 0
+    print(f"{rows[0]['prompts']} step-0 prompts ({len(personas)} persona(s) x {len(seeds)} scene seed(s) x {len(tasks)} tasks); "
+          "a task is read right when its own first action (the oracle's) scores highest among the tasks' first actions")
+    print(f"{'model':<28} {'read right':>10}  {'ignoring the task (at most)':>27}")
+    for row in rows:
+        print(f"{row['model']:<28} {row['share']:>10.1%}  {row['ignoring_share']:>27.1%}")
+        for t, r in row["by_task"].items():
+            wrong = {a: n for a, n in r["chosen"].items()} if r["right"] < r["prompts"] else {}
+            print(f"  {t:<16} {r['right']:>3} / {r['prompts']:<3}" + (f"  chose: {wrong}" if wrong else ""))
+    return 0
+
+
 def add_commands(sub) -> None:
-    """Register `adapt probe answers`."""
+    """Register `adapt probe answers` and `adapt probe tasks`."""
     from .episode import add_spec_option
 
-    p = sub.add_parser("probe", help="probe what a model does with what it is told: `adapt probe answers`")
+    p = sub.add_parser("probe", help="probe what a model does with what it is told: `adapt probe answers`, "
+                                     "`adapt probe tasks`")
     psub = p.add_subparsers(dest="probe_command", metavar="SUBCOMMAND")
     q = psub.add_parser(
         "answers", help="the share of answer pairs whose next action follows the user's answer",
@@ -118,3 +156,22 @@ def add_commands(sub) -> None:
     q.add_argument("--verbose", "-v", action="store_true", help="also each pair's actions and whether they were followed")
     q.add_argument("--quiet", action="store_true", help="no progress bar")
     q.set_defaults(func=_cmd_answers, backend="transformers", batch=None)
+    t = psub.add_parser(
+        "tasks", help="the share of tasks whose first action the model takes under their prompt",
+        description="For each persona and scene seed, every task's step-0 planner prompt and the oracle's first "
+                    "action of every task: report the share of prompts under which the model scores the task's own "
+                    "first action highest, beside the most a model that ignores the task gets, and by task what it "
+                    "chose where it read the task wrong (the shipped student reads tea and eggs as tea and toast). "
+                    "Details: docs/training.md.")
+    add_spec_option(t)
+    t.add_argument("--model", action="append", required=True,
+                   help="model directory, or `student` (the shipped tiny student); repeat for several")
+    t.add_argument("--tasks", default="all", help="'all' or comma-separated task ids (two at least)")
+    t.add_argument("--personas", default="mark", help="'all' or comma-separated persona ids (default mark)")
+    t.add_argument("--seeds", default="0-3", help="scene seeds, e.g. 0-3 (default 0-3)")
+    t.add_argument("--device", default="cpu", help="cpu, cuda, cuda:1 ... (default cpu)")
+    t.add_argument("--dtype", choices=["auto", "float32", "bfloat16", "float16"],
+                   help="default: the checkpoint's, or bfloat16 for a real-sized model on a CPU that has it")
+    t.add_argument("--json", action="store_true", help="print the figures as JSON")
+    t.add_argument("--quiet", action="store_true", help="no progress bar")
+    t.set_defaults(func=_cmd_tasks, backend="transformers", batch=None)
