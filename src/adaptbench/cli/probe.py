@@ -122,6 +122,18 @@ def _cmd_tasks(args) -> int:
     return 0
 
 
+MODEL_HELP = "model directory, or `student` (the shipped tiny student); repeat for several"
+
+
+def _scoring_options(q) -> None:
+    """The options every probe takes for loading and scoring the models and for its output."""
+    q.add_argument("--device", default="cpu", help="cpu, cuda, cuda:1 ... (default cpu)")
+    q.add_argument("--dtype", choices=["auto", "float32", "bfloat16", "float16"],
+                   help="default: the checkpoint's, or bfloat16 for a real-sized model on a CPU that has it")
+    q.add_argument("--json", action="store_true", help="print the figures as JSON")
+    q.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
 def add_commands(sub) -> None:
     """Register `adapt probe answers` and `adapt probe tasks`."""
     from .episode import add_spec_option
@@ -138,8 +150,7 @@ def add_commands(sub) -> None:
                     "(a model that ignores answers: 50%%) and of pairs that follow both answers (ignoring: 0%%), "
                     "one line per --model. Details: docs/llm.md.")
     add_spec_option(q)
-    q.add_argument("--model", action="append", required=True,
-                   help="model directory, or `student` (the shipped tiny student); repeat for several")
+    q.add_argument("--model", action="append", required=True, help=MODEL_HELP)
     q.add_argument("--tasks", default="all", help="'all' or comma-separated task ids")
     q.add_argument("--personas", default="all", help="'all' or comma-separated persona ids (answer A's persona)")
     q.add_argument("--seeds", default="0", help="scene seeds, e.g. 0 or 0-3 (default 0)")
@@ -149,12 +160,8 @@ def add_commands(sub) -> None:
     q.add_argument("--limit", type=int, default=200,
                    help="score at most this many pairs, taken evenly across all built (default 200; 0: all)")
     q.add_argument("--max-steps", type=int, default=50, help="step limit of the probe episodes (default 50)")
-    q.add_argument("--device", default="cpu", help="cpu, cuda, cuda:1 ... (default cpu)")
-    q.add_argument("--dtype", choices=["auto", "float32", "bfloat16", "float16"],
-                   help="default: the checkpoint's, or bfloat16 for a real-sized model on a CPU that has it")
-    q.add_argument("--json", action="store_true", help="print the figures as JSON")
+    _scoring_options(q)
     q.add_argument("--verbose", "-v", action="store_true", help="also each pair's actions and whether they were followed")
-    q.add_argument("--quiet", action="store_true", help="no progress bar")
     q.set_defaults(func=_cmd_answers, backend="transformers", batch=None)
     t = psub.add_parser(
         "tasks", help="the share of tasks whose first action the model takes under their prompt",
@@ -164,14 +171,9 @@ def add_commands(sub) -> None:
                     "chose where it read the task wrong (the shipped student reads tea and eggs as tea and toast). "
                     "Details: docs/training.md.")
     add_spec_option(t)
-    t.add_argument("--model", action="append", required=True,
-                   help="model directory, or `student` (the shipped tiny student); repeat for several")
+    t.add_argument("--model", action="append", required=True, help=MODEL_HELP)
     t.add_argument("--tasks", default="all", help="'all' or comma-separated task ids (two at least)")
     t.add_argument("--personas", default="mark", help="'all' or comma-separated persona ids (default mark)")
     t.add_argument("--seeds", default="0-3", help="scene seeds, e.g. 0-3 (default 0-3)")
-    t.add_argument("--device", default="cpu", help="cpu, cuda, cuda:1 ... (default cpu)")
-    t.add_argument("--dtype", choices=["auto", "float32", "bfloat16", "float16"],
-                   help="default: the checkpoint's, or bfloat16 for a real-sized model on a CPU that has it")
-    t.add_argument("--json", action="store_true", help="print the figures as JSON")
-    t.add_argument("--quiet", action="store_true", help="no progress bar")
+    _scoring_options(t)
     t.set_defaults(func=_cmd_tasks, backend="transformers", batch=None)
