@@ -17,9 +17,11 @@ Needs the `models` extra. Figures go to docs/llm.md.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import tempfile
 import time
+from contextlib import contextmanager
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
@@ -159,15 +161,33 @@ def steps_per_second(domain, backend, plain, batches, steps: int, passes=(None,)
     user), with the share of the wall time spent outside the model and CPU seconds per step, under
     each decoding pass (`llm.batch_pass` modes; None: the device's default); and the plain way, one
     episode with `model.generate` reading every step's prompt whole (no cache)."""
-    from adaptbench.llm import batch_pass
-
     out = {}
     for name in passes:
-        if name is not None:
-            batch_pass.set_mode(backend.model, name)
-        out.update({(name, b): _timed_rollout(domain, backend, b, steps, b) for b in batches})
+        with _decoding_pass(backend, name):
+            out.update({(name, b): _timed_rollout(domain, backend, b, steps, b) for b in batches})
     out["plain"] = _timed_rollout(domain, plain, 1, steps, 1)
     return out
+
+
+@contextmanager
+def _decoding_pass(backend, name: str | None):
+    """Decode through this pass: a `llm.batch_pass` mode, optionally with its lanes (`graphs:1`: the
+    graphed pass in one lane, no overlap; `llm.lanes`); None: the device's default."""
+    from adaptbench.llm import batch_pass, lanes
+
+    before = os.environ.get(lanes.LANES_ENV)
+    mode, _, count = (name or "").partition(":")
+    if mode:
+        batch_pass.set_mode(backend.model, mode)
+    if count:
+        os.environ[lanes.LANES_ENV] = count
+    try:
+        yield
+    finally:
+        if before is None:
+            os.environ.pop(lanes.LANES_ENV, None)
+        else:
+            os.environ[lanes.LANES_ENV] = before
 
 
 def profiled(domain, backend, batch: int, steps: int, out: str) -> None:
@@ -221,6 +241,11 @@ def _step_rows(table: dict, batches, steps: int, passes=(None,)) -> list:
                     (table[("hf", b)]["steps"] / table[("hf", b)]["wall"])
                 rows.append((f"llm: {name} / hf, batch {b}", ratio, "ratio", "", "(decoding pass against the "
                              "model's forward)"))
+    rate = {k: t["steps"] / t["wall"] for k, t in table.items() if k != "plain"}
+    for name in (p for p in passes if p and ":" in p and p.partition(":")[0] in passes):
+        mode = name.partition(":")[0]
+        rows += [(f"llm: {mode} / {name}, batch {b}", rate[(mode, b)] / rate[(name, b)], "ratio", "",
+                  "(the device's lanes against these: llm/lanes.py)") for b in batches]
     return rows
 
 
@@ -360,8 +385,10 @@ def main() -> int:
                    "episode's steps in the steps/s rows (default: 3 quick, 2 quick for a real-sized model)")
     p.add_argument("--profile", metavar="FILE", help="also profile one rollout at the largest batch (operators "
                    "and Python functions) into FILE")
-    p.add_argument("--passes", help="decoding passes to compare in the steps/s rows, e.g. hf,lean,graphs "
-                   "(llm/batch_pass.py; default: the device's own: graphs on a GPU, hf on a CPU)")
+    p.add_argument("--passes", help="decoding passes to compare in the steps/s rows, e.g. hf,lean,graphs:1,graphs "
+                   "(llm/batch_pass.py; ':N' decodes in N lanes, llm/lanes.py: graphs:1 has no overlap, graphs "
+                   "alone overlaps two half-batches from 16 rows on CUDA; default: the device's own: graphs on a "
+                   "GPU, hf on a CPU)")
     p.add_argument("--settings", action="store_true", help="with --model: steps/s under each backend setting "
                    "(threads, batch, session cache, budget, dtype; bench/llm_settings.py)")
     args = p.parse_args()

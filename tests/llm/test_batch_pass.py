@@ -168,3 +168,68 @@ class _Layer:
     def get_seq_length(self) -> int:
         return self.keys.shape[2]
 
+
+
+@pytest.mark.parametrize("mode", ["hf", "graphs"])
+def test_rollouts_in_two_lanes_act_as_one_batch_and_each_lane_has_its_own_pool(domain, tiny, mode, monkeypatch):
+    """Half-batches decoded in turn (`lanes.run`, forced here with ADAPT_DECODE_LANES=2: two lanes of 3
+    and 2 rows, stopped rows riding) take the same actions as one batch through the model's forward; in
+    graphs mode each lane decodes in a pool of its own, and both lanes' passes ran."""
+    from adaptbench.llm import batch_pass, decode, lanes
+
+    monkeypatch.setattr(decode, "COMPACT_BYTES", 0)
+    ours, plain = _sharp(tiny, device=DEVICE), _sharp(tiny, device=DEVICE)
+    batch_pass.set_mode(ours.model, mode)
+    ours.model.__dict__["_adapt_lean"] = False
+    batch_pass.set_mode(plain.model, "hf")
+    seen = []
+    real = decode.steps
+
+    def counted(model, rows, *args, lane=0, **kw):
+        seen.append((lane, len(rows)))
+        return real(model, rows, *args, lane=lane, **kw)
+
+    monkeypatch.setattr("adaptbench.llm.hf.steps", counted)
+    want = _actions(domain, plain, 5)
+    monkeypatch.setenv(lanes.LANES_ENV, "2")
+    assert _actions(domain, ours, 5) == want
+    assert (0, 3) in seen and (1, 2) in seen
+    pools = [ours.model.__dict__.get(name) for name in ("_adapt_graphs", "_adapt_graphs1")]
+    if mode == "graphs":
+        assert all(pools) and pools[0].kv.data_ptr() != pools[1].kv.data_ptr()
+    else:
+        assert not any(pools)
+
+
+def test_lanes_split_rows_evenly_and_are_used_for_graphed_batches_on_a_gpu_only(tiny, monkeypatch):
+    """`split` gives contiguous ranges differing by at most one row; `count` gives one lane on the CPU
+    and for small batches, two for the graphed passes on CUDA from 2 x LANE_MIN rows; the environment
+    overrides it, never beyond a lane a row."""
+    from adaptbench.llm import batch_pass, lanes
+
+    assert lanes.split(5, 2) == [range(0, 3), range(3, 5)]
+    assert lanes.split(64, 2) == [range(0, 32), range(32, 64)]
+    assert lanes.split(3, 1) == [range(0, 3)]
+    b = _sharp(tiny)
+    monkeypatch.delenv(lanes.LANES_ENV, raising=False)
+    batch_pass.set_mode(b.model, "graphs")
+    assert lanes.count(b.model, 64) == (2 if b.model.device.type == "cuda" else 1)
+    assert lanes.count(b.model, 2 * lanes.LANE_MIN - 1) == 1
+    monkeypatch.setenv(lanes.LANES_ENV, "2")
+    assert lanes.count(b.model, 5) == 2 and lanes.count(b.model, 1) == 1
+
+
+def test_run_steps_lanes_in_turn_and_returns_each_result():
+    """Generators are stepped round-robin (each yields after queuing a pass) until all have returned."""
+    from adaptbench.llm.lanes import run
+
+    order = []
+
+    def lane(name, n):
+        for i in range(n):
+            order.append((name, i))
+            yield
+        return name
+
+    assert run([lane("a", 3), lane("b", 1)]) == ["a", "b"]
+    assert order == [("a", 0), ("b", 0), ("a", 1), ("a", 2)]

@@ -353,19 +353,20 @@ def _writer(pk: torch.Tensor, pv: torch.Tensor, cols: torch.Tensor, length: int)
     return write
 
 
-def graphs_of(model, rows: int, positions: int) -> DecodeGraphs | None:
-    """The model's `DecodeGraphs` sized for at least `rows` rows of `positions` positions (made, or
-    remade larger, here: a new pool drops the old one's graphs), or None when the model does not
-    decode through graphs."""
+def graphs_of(model, rows: int, positions: int, lane: int = 0) -> DecodeGraphs | None:
+    """The model's `DecodeGraphs` for this lane (`lanes.run` decodes lanes in turn, each in a pool of its
+    own) sized for at least `rows` rows of `positions` positions (made, or remade larger, here: a new
+    pool drops the old one's graphs), or None when the model does not decode through graphs."""
     if mode(model) != "graphs":
         return None
-    have = model.__dict__.get("_adapt_graphs")
+    name = "_adapt_graphs" if lane == 0 else f"_adapt_graphs{lane}"
+    have = model.__dict__.get(name)
     if have is not None and have.fits(rows, positions):
         return have
     rows = max(bucket(rows, ROWS_MIN), have.rows if have else 0)
     capacity = max(bucket(positions, 1024), have.capacity if have else 0)
-    model.__dict__["_adapt_graphs"] = None  # the old pool is freed before the new one is allocated
-    made = model.__dict__["_adapt_graphs"] = DecodeGraphs(model, rows, capacity)
+    model.__dict__[name] = None  # the old pool is freed before the new one is allocated
+    made = model.__dict__[name] = DecodeGraphs(model, rows, capacity)
     return made
 
 

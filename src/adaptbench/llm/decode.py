@@ -20,6 +20,9 @@ computed, and while that mask allows a single token (a literal the grammar spell
 complete action) the row takes it without a pass of its own; a row's tokens of one step are read
 together at its next pass (right-aligned, padded and masked to the longest row). The rows' first masks,
 the costliest, are computed on a worker thread while the prompts are read (llguidance drops the GIL).
+
+`steps` is the same loop as a generator that yields after queuing each pass: on a GPU, `lanes.run`
+decodes two half-batches in turn with it, one lane's grammar work overlapping the other's pass.
 """
 
 from __future__ import annotations
@@ -329,14 +332,30 @@ def _stack(model, rows_layers: list, lengths: list, room: int, graphs=None) -> t
 
 
 def decode(model, rows: list, sessions: Sessions, picker, stopped, pad_id: int = 0, together: bool = True) -> float:
-    """Generate every row's tokens in place (`row.tokens`). `picker.pick(logits [B, V], active row
+    """Generate every row's tokens in place (`row.tokens`); `steps` with nothing else to run between its
+    passes. Returns the seconds spent reading the prompts (the rest is decoding)."""
+    run = steps(model, rows, sessions, picker, stopped, pad_id, together)
+    while True:
+        try:
+            next(run)
+        except StopIteration as done:
+            return done.value
+
+
+def steps(model, rows: list, sessions: Sessions, picker, stopped, pad_id: int = 0, together: bool = True,
+          lane: int = 0):
+    """The decoding of `rows` as a generator: it yields each time it has queued a pass and the pick of
+    the tokens that pass makes (on a GPU both run while the caller does other work: `lanes.run` decodes
+    another lane's rows there), and returns the seconds spent reading the prompts.
+
+    Rows' tokens are generated in place (`row.tokens`). `picker.pick(logits [B, V], active row
     indices, steps) -> token ids [B]` masks and picks the next token of each active row (the grammar
     acts there) and `picker.advance(rows, tokens) -> {row: token}` hears which tokens those rows took
     and names the rows whose grammar now allows a single token, which they take without a forward pass
     of their own (a row's tokens of one step are read together at the next); `stopped(row_index, row)
     -> bool` says a row is over after its newest token (EOS, stop string, limit). Sessions get their
-    rows' caches back. `together`: see `prefill_rows`. Returns the seconds spent reading the prompts
-    (the rest is decoding).
+    rows' caches back. `together`: see `prefill_rows`. `lane`: which of the model's key/value pools
+    the rows decode in (`batch_pass.graphs_of`; lanes decoded in turn need one each).
 
     The cache: a single row decodes into its own layers (the session's buffer, written in place: no
     copy per step) with no attention mask; several rows share one left-padded batch buffer, with a
@@ -346,22 +365,22 @@ def decode(model, rows: list, sessions: Sessions, picker, stopped, pad_id: int =
     t0 = time.perf_counter()
     picker.start(list(range(len(rows))))  # the first masks need no prompt: computed while the prompts are read
     room = max(r.max_tokens for r in rows)
-    graphs = batch_pass.graphs_of(model, len(rows), max(len(r.prompt) for r in rows) + 2 * room)  # room for padding
+    graphs = batch_pass.graphs_of(model, len(rows), max(len(r.prompt) for r in rows) + 2 * room, lane)
     read_rows, batch = prefill_rows(model, rows, sessions, pad_id, together, room, graphs)
     first, layers = zip(*read_rows, strict=True)
     reading = time.perf_counter() - t0
     read = [len(r.prompt) for r in rows]  # each row's tokens in the cache
-    logits = torch.stack(first)
     cache, mask = batch if batch is not None else _batch_cache(model, list(layers), read, room, graphs)
     if graphs is not None and not graphs.holds(cache.layers):
         cache.layers = graphs.adopt(cache.layers)
     narrow = narrow_head(model)
     slots = list(range(len(rows)))  # the request row in each cache row (None: a stopped row riding along)
     active = list(slots)
+    picked = Picked(picker.pick(torch.stack(first), active, {i: len(rows[i].tokens) for i in active}))
+    yield
     while active:
-        picked = picker.pick(logits, active, {i: len(rows[i].tokens) for i in active}).tolist()
-        for k, i in enumerate(active):
-            rows[i].tokens.append(picked[k])
+        for i, token in zip(active, picked.tolist(), strict=True):
+            rows[i].tokens.append(token)
         running = _take_forced(rows, [i for i in active if not stopped(i, rows[i])], picker, stopped)
         if len(running) < len(active):
             _store(rows, slots, running, read, cache, mask, sessions, graphs)
@@ -378,7 +397,29 @@ def decode(model, rows: list, sessions: Sessions, picker, stopped, pad_id: int =
         for i, t in zip(slots, new, strict=True):
             if i is not None:
                 read[i] += len(t)
+        picked = Picked(picker.pick(logits, active, {i: len(rows[i].tokens) for i in active}))
+        yield
     return reading
+
+
+class Picked:
+    """A pass's picked tokens on their way to the host: on CUDA copied into pinned memory without
+    waiting, with an event after the copy, so that reading them waits for this pass's work only (not
+    for another lane's pass queued after it); elsewhere, the tokens themselves."""
+
+    def __init__(self, tokens: torch.Tensor):
+        self.tokens, self.done = tokens, None
+        if tokens.is_cuda:
+            self.tokens = torch.empty(tokens.shape, dtype=tokens.dtype, pin_memory=True)
+            self.tokens.copy_(tokens, non_blocking=True)
+            self.done = torch.cuda.Event()
+            self.done.record()
+
+    def tolist(self) -> list:
+        """The token ids (waits for their copy)."""
+        if self.done is not None:
+            self.done.synchronize()
+        return self.tokens.tolist()
 
 
 def _batch_cache(model, layers: list, read: list, room: int, graphs=None) -> tuple:

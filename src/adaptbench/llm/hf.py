@@ -18,7 +18,7 @@ from transformers import (
     StoppingCriteriaList,
 )
 
-from . import chat
+from . import chat, lanes
 from .backend import (
     Backend,
     Completion,
@@ -30,7 +30,7 @@ from .backend import (
 )
 from .constrained import GrammarProcessor, Matchers, closing_tokens, ll_tokenizer
 from .cpu_kernels import BF16_WEIGHTS, pack_linears
-from .decode import Picker, Row, Sessions, decode, loop_supported
+from .decode import Picker, Row, Sessions, loop_supported, steps
 from .sampling import RowSampler, SampleProcessor, generator, request_seed, sampling_config
 from .scoring import read_prompt, score_after
 
@@ -156,23 +156,33 @@ class TransformersBackend(Backend):
     def _batch(self, reqs: list) -> list:
         t0 = time.perf_counter()
         prompts = [self.encode(r.prompt) for r in reqs]
-        eos = self.tokenizer.eos_token_id
-        proc = (GrammarProcessor(self.matchers, [r.grammar for r in reqs], eos, self.vocab,
-                                 [r.max_tokens for r in reqs], closing_tokens(self.tokenizer, eos))
-                if any(r.grammar is not None for r in reqs) else None)
         if not self.loop:
-            return self._batch_hf(reqs, prompts, proc, t0)
+            return self._batch_hf(reqs, prompts, self._processor(reqs), t0)
+        parts = lanes.split(len(reqs), lanes.count(self.model, len(reqs)))  # rows of each lane
+        procs = [self._processor([reqs[i] for i in part]) for part in parts]
         rows = [Row(p, r.max_tokens, tuple(r.stop), getattr(r, "session", None)) for p, r in zip(prompts, reqs, strict=True)]
-        picker = Picker(proc, self.sampler(reqs))
-        reading = decode(self.model, rows, self.sessions, picker, self._stopper(rows), self.pad_id,
-                         self.prefill_together)
-        seconds = time.perf_counter() - t0
-        outs = [self._completion(r, row.tokens, len(row.prompt), proc, i, seconds, len(reqs), row.reused)
-                for i, (r, row) in enumerate(zip(reqs, rows, strict=True))]
-        for o, row in zip(outs, rows, strict=True):
-            o.stats["read_seconds"] = round(reading, 4)
-            o.stats["forced_tokens"] = row.forced
+        readings = lanes.run([
+            steps(self.model, [rows[i] for i in part], self.sessions, Picker(proc, self.sampler([reqs[i] for i in part])),
+                  self._stopper([rows[i] for i in part]), self.pad_id, self.prefill_together, lane=k)
+            for k, (part, proc) in enumerate(zip(parts, procs, strict=True))])
+        seconds, reading = time.perf_counter() - t0, max(readings)
+        outs = []
+        for part, proc in zip(parts, procs, strict=True):
+            for j, i in enumerate(part):
+                row = rows[i]
+                outs.append(self._completion(reqs[i], row.tokens, len(row.prompt), proc, j, seconds, len(reqs),
+                                             row.reused))
+                outs[-1].stats["read_seconds"] = round(reading, 4)
+                outs[-1].stats["forced_tokens"] = row.forced
         return outs
+
+    def _processor(self, reqs: list):
+        """The requests' grammar processor (None when none has a grammar)."""
+        if not any(r.grammar is not None for r in reqs):
+            return None
+        eos = self.tokenizer.eos_token_id
+        return GrammarProcessor(self.matchers, [r.grammar for r in reqs], eos, self.vocab,
+                                [r.max_tokens for r in reqs], closing_tokens(self.tokenizer, eos))
 
     def _stopper(self, rows: list):
         eos = self.tokenizer.eos_token_id
