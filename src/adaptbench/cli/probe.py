@@ -134,10 +134,20 @@ def _scoring_options(q) -> None:
     q.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
-def add_commands(sub) -> None:
-    """Register `adapt probe answers` and `adapt probe tasks`."""
+def _scope_options(q, tasks_help: str, personas: tuple, seeds: tuple) -> None:
+    """A probe's --spec, --model (repeatable), --tasks, --personas and --seeds (`personas`, `seeds`: default
+    and help)."""
     from .episode import add_spec_option
 
+    add_spec_option(q)
+    q.add_argument("--model", action="append", required=True, help=MODEL_HELP)
+    q.add_argument("--tasks", default="all", help=tasks_help)
+    q.add_argument("--personas", default=personas[0], help=personas[1])
+    q.add_argument("--seeds", default=seeds[0], help=seeds[1])
+
+
+def add_commands(sub) -> None:
+    """Register `adapt probe answers` and `adapt probe tasks`."""
     p = sub.add_parser("probe", help="probe what a model does with what it is told: `adapt probe answers`, "
                                      "`adapt probe tasks`")
     psub = p.add_subparsers(dest="probe_command", metavar="SUBCOMMAND")
@@ -149,11 +159,9 @@ def add_commands(sub) -> None:
                     "report the share of prompts under which the model scores its answer's action above the other "
                     "(a model that ignores answers: 50%%) and of pairs that follow both answers (ignoring: 0%%), "
                     "one line per --model. Details: docs/llm.md.")
-    add_spec_option(q)
-    q.add_argument("--model", action="append", required=True, help=MODEL_HELP)
-    q.add_argument("--tasks", default="all", help="'all' or comma-separated task ids")
-    q.add_argument("--personas", default="all", help="'all' or comma-separated persona ids (answer A's persona)")
-    q.add_argument("--seeds", default="0", help="scene seeds, e.g. 0 or 0-3 (default 0)")
+    _scope_options(q, "'all' or comma-separated task ids",
+                   ("all", "'all' or comma-separated persona ids (answer A's persona)"),
+                   ("0", "scene seeds, e.g. 0 or 0-3 (default 0)"))
     q.add_argument("--at", choices=["recipe", "start"], default="recipe",
                    help="where the question is asked: just before its choice's recipe, as the oracle-ask agent asks "
                         "(default), or as the first action")
@@ -170,10 +178,8 @@ def add_commands(sub) -> None:
                     "first action highest, beside the most a model that ignores the task gets, and by task what it "
                     "chose where it read the task wrong (the shipped student reads tea and eggs as tea and toast). "
                     "Details: docs/training.md.")
-    add_spec_option(t)
-    t.add_argument("--model", action="append", required=True, help=MODEL_HELP)
-    t.add_argument("--tasks", default="all", help="'all' or comma-separated task ids (two at least)")
-    t.add_argument("--personas", default="mark", help="'all' or comma-separated persona ids (default mark)")
-    t.add_argument("--seeds", default="0-3", help="scene seeds, e.g. 0-3 (default 0-3)")
+    _scope_options(t, "'all' or comma-separated task ids (two at least)",
+                   ("mark", "'all' or comma-separated persona ids (default mark)"),
+                   ("0-3", "scene seeds, e.g. 0-3 (default 0-3)"))
     _scoring_options(t)
     t.set_defaults(func=_cmd_tasks, backend="transformers", batch=None)
