@@ -38,7 +38,7 @@ import torch
 from transformers import DynamicCache
 from transformers.cache_utils import DynamicLayer
 
-from . import batch_pass, one_row
+from . import batch_pass, lanes, one_row
 from .constrained import unpack_bits
 from .kv_buffer import BufferLayer, PackedRow, as_layers, cache_of
 
@@ -334,12 +334,7 @@ def _stack(model, rows_layers: list, lengths: list, room: int, graphs=None) -> t
 def decode(model, rows: list, sessions: Sessions, picker, stopped, pad_id: int = 0, together: bool = True) -> float:
     """Generate every row's tokens in place (`row.tokens`); `steps` with nothing else to run between its
     passes. Returns the seconds spent reading the prompts (the rest is decoding)."""
-    run = steps(model, rows, sessions, picker, stopped, pad_id, together)
-    while True:
-        try:
-            next(run)
-        except StopIteration as done:
-            return done.value
+    return lanes.run([steps(model, rows, sessions, picker, stopped, pad_id, together)])[0]
 
 
 def steps(model, rows: list, sessions: Sessions, picker, stopped, pad_id: int = 0, together: bool = True,
