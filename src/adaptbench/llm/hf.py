@@ -158,22 +158,20 @@ class TransformersBackend(Backend):
         prompts = [self.encode(r.prompt) for r in reqs]
         if not self.loop:
             return self._batch_hf(reqs, prompts, self._processor(reqs), t0)
-        parts = lanes.split(len(reqs), lanes.count(self.model, len(reqs)))  # rows of each lane
-        procs = [self._processor([reqs[i] for i in part]) for part in parts]
         rows = [Row(p, r.max_tokens, tuple(r.stop), getattr(r, "session", None)) for p, r in zip(prompts, reqs, strict=True)]
-        readings = lanes.run([
-            steps(self.model, [rows[i] for i in part], self.sessions, Picker(proc, self.sampler([reqs[i] for i in part])),
-                  self._stopper([rows[i] for i in part]), self.pad_id, self.prefill_together, lane=k)
-            for k, (part, proc) in enumerate(zip(parts, procs, strict=True))])
+        parts = lanes.split(len(reqs), lanes.count(self.model, len(reqs)))  # each lane's rows: contiguous, in order
+        lane_reqs, lane_rows = [[reqs[i] for i in p] for p in parts], [[rows[i] for i in p] for p in parts]
+        procs = [self._processor(rq) for rq in lane_reqs]
+        readings = lanes.run([steps(self.model, lr, self.sessions, Picker(proc, self.sampler(rq)), self._stopper(lr),
+                                    self.pad_id, self.prefill_together, lane=k)
+                              for k, (rq, lr, proc) in enumerate(zip(lane_reqs, lane_rows, procs, strict=True))])
         seconds, reading = time.perf_counter() - t0, max(readings)
-        outs = []
-        for part, proc in zip(parts, procs, strict=True):
-            for j, i in enumerate(part):
-                row = rows[i]
-                outs.append(self._completion(reqs[i], row.tokens, len(row.prompt), proc, j, seconds, len(reqs),
-                                             row.reused))
-                outs[-1].stats["read_seconds"] = round(reading, 4)
-                outs[-1].stats["forced_tokens"] = row.forced
+        outs = [self._completion(r, row.tokens, len(row.prompt), proc, j, seconds, len(reqs), row.reused)
+                for rq, lr, proc in zip(lane_reqs, lane_rows, procs, strict=True)
+                for j, (r, row) in enumerate(zip(rq, lr, strict=True))]
+        for o, row in zip(outs, rows, strict=True):
+            o.stats["read_seconds"] = round(reading, 4)
+            o.stats["forced_tokens"] = row.forced
         return outs
 
     def _processor(self, reqs: list):

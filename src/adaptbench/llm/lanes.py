@@ -36,6 +36,8 @@ def count(model, rows: int) -> int:
     for the graphed passes on CUDA with at least 2 x `LANE_MIN` rows, else 1."""
     want = os.environ.get(LANES_ENV)
     if want:
+        if not want.isdigit():
+            raise ValueError(f"{LANES_ENV}={want!r}: give a whole number of lanes (1: no overlap)")
         return max(1, min(int(want), rows))
     graphed = batch_pass.mode(model) == "graphs" and model.device.type == "cuda"
     return 2 if graphed and rows >= 2 * LANE_MIN else 1
