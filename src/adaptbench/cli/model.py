@@ -415,6 +415,47 @@ def _add_gguf_commands(msub) -> None:
     q.set_defaults(func=_cmd_model_import_gguf)
 
 
+def _cmd_model_ship(args) -> int:
+    from ..compiler import load_domain
+    from ..training.ship import ShipError, ship
+
+    dest = Path(args.dest) if args.dest else None
+    if dest is None:
+        from ..llm.named import NAMED, named_path
+
+        if args.name not in NAMED:
+            _fail(f"--name {args.name} is not a shipped model's name ({', '.join(NAMED)}): give --dest DIR")
+        dest = named_path(args.name)
+    try:
+        rec = ship(Path(args.run), args.method, dest, args.name, load_domain(args.spec))
+    except ShipError as exc:
+        _fail(str(exc), 1)
+    for row in rec["evaluation"].get("paired_with_base", ()):
+        d, se = row["difference"]
+        print(f"  against the base, {row['personas']}: {d:+.1f} ± {se:.1f} points over {row['episodes']} episodes")
+    return 0
+
+
+def _add_ship_command(msub) -> None:
+    from .episode import add_spec_option
+
+    q = msub.add_parser("ship", help="make a method trained by `adapt train reproduce` a named model of the package "
+                        "(student-rdpo), with its provenance",
+                        description="Copies OUT/<method>/merged (the model and tokenizer files) of an `adapt train "
+                                    "reproduce` run into the package's checkpoints (or --dest) with training.json: "
+                                    "method, split and scene seeds (what adapt eval reads), the base student's record, "
+                                    "the training data's summary, the trainer's settings and result, and the "
+                                    "pipeline's evaluation of it beside the base (paired, clustered by scene). E.g. "
+                                    "adapt model ship --run runs/r0 --method dpo --name student-rdpo")
+    add_spec_option(q)
+    q.add_argument("--run", required=True, help="the OUT of `adapt train reproduce`")
+    q.add_argument("--method", required=True, choices=["dpo", "no-reflection", "sft", "star-gate"],
+                   help="which trained model of the run")
+    q.add_argument("--name", required=True, help="the model's name (student-rdpo: `--model student-rdpo`)")
+    q.add_argument("--dest", help="directory to write instead of the package's checkpoints/<name>")
+    q.set_defaults(func=_cmd_model_ship)
+
+
 def add_commands(sub) -> None:
     """Register `adapt model init`, `pretrain`, `get` and `import-gguf`."""
     from .episode import add_spec_option
@@ -459,3 +500,4 @@ def add_commands(sub) -> None:
 
     add_curve_command(msub)
     _add_gguf_commands(msub)
+    _add_ship_command(msub)
