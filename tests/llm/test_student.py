@@ -121,3 +121,17 @@ def test_training_refuses_a_device_it_cannot_train_on(tmp_path, capsys):
                      "--device", "cuda"]) == 2
         assert "--device cuda" in capsys.readouterr().err
     assert not Path(out).exists()
+
+
+def test_data_only_builds_the_teacher_data_and_trains_nothing(tmp_path, capsys):
+    """`--data-only`: OUT/data as the training would build it (kept by the same command without the flag,
+    e.g. on a GPU machine it is copied to: bench/gpu_student.sh), no model."""
+    from adaptbench.cli import main
+
+    out = tmp_path / "st"
+    assert main(["model", "student", "--out", str(out), "--tasks", "cereal", "--ask-seeds", "none",
+                 "--oracle-seeds", "100", "--workers", "1", "--data-only", "--quiet"]) == 0
+    assert "teacher data in" in capsys.readouterr().out
+    episodes = (out / "data" / "oracle.jsonl").read_text().splitlines()
+    assert len(episodes) == 12  # split 0's 12 training personas x cereal x seed 100
+    assert not (out / "student.json").exists() and not (out / "init").exists()

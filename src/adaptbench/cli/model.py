@@ -291,6 +291,13 @@ def _cmd_model_student(args) -> int:
         line = overlap_message(flag, seeds)
         if line and not args.allow_eval_seeds:
             _fail(line)
+    if args.data_only:
+        from ..training.student import teacher_data
+
+        files = teacher_data(domain, s, Path(args.out), progress=not args.quiet)
+        print(f"teacher data in {args.out}/data: {', '.join(f.name for f in files)} (the same command without "
+              "--data-only trains on it, here or on a machine the folder is copied to)")
+        return 0
     try:
         info = build_student(domain, args.out, s, log=lambda m: print(m, file=sys.stderr), progress=not args.quiet)
     except ImportError as exc:
@@ -363,6 +370,10 @@ def _add_student_command(msub) -> None:
                    help=f"save a resumable training checkpoint to OUT/trainer every N updates (default {d.save_every}); "
                         "run the same command again after a kill to resume there")
     q.add_argument("--device", default=d.device, help=DEVICE_HELP)
+    q.add_argument("--data-only", action="store_true",
+                   help="build OUT/data (the teachers' episodes and the answer rows) and stop: e.g. on a CPU machine, "
+                        "before the same command trains on a GPU machine that OUT/data is copied to "
+                        "(bench/gpu_student.sh)")
     q.add_argument("--quiet", action="store_true")
     q.set_defaults(func=_cmd_model_student)
 
