@@ -1,13 +1,16 @@
 """Models shipped inside the package, named instead of given as a directory: `--model student` is the
 base student that cooks (behaviour-cloned on the oracle's episodes of split 0's training personas:
 `adapt model curve` built it and `adapt model student --init` continued it on new scenes, docs/training.md;
-its `student.json` holds the provenance), at `adaptbench/checkpoints/student/`. A path that exists always wins over a name."""
+its `student.json` holds the provenance), at `adaptbench/checkpoints/student/`; `--model student-rdpo` is that student
+after Reflection-DPO (`adapt train reproduce --base` on it, then `adapt model ship`; its `training.json` holds the
+provenance and the evaluation), at `adaptbench/checkpoints/student-rdpo/`. A path that exists always wins over a
+name."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
-NAMED = {"student": "checkpoints/student"}
+NAMED = {"student": "checkpoints/student", "student-rdpo": "checkpoints/student-rdpo"}
 
 
 def named_path(name: str) -> Path:
