@@ -16,12 +16,7 @@
 set -u
 out=${1:-${OUT:-gpu-student}}
 mkdir -p "$out"
-if [ -d .whl ]; then
-  python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade --target /tmp/site .whl/*.whl \
-    || exit 1
-  export PYTHONPATH=/tmp/site:${PYTHONPATH:-}
-fi
-export PYTHONPATH=$PWD/src:${PYTHONPATH:-} PYTHONUNBUFFERED=1
+. bench/gpu_env.sh
 if [ -n "${DRY:-}" ]; then
   dev=cpu; hidden=${HIDDEN:-32}; layers=${LAYERS:-1}; steps=${STEPS:-4}; oracle=${ORACLE:-100}; pairs=${PAIRS:-100}
   tasks="--tasks eggs"; personas=leila; seeds=0; batch=4; workers=${WORKERS:-1}
