@@ -15,10 +15,11 @@ destination as it was.
 
 from __future__ import annotations
 
-import hashlib
 import json
 import shutil
 from pathlib import Path
+
+from .pretrain import file_sha256
 
 MODEL_FILES = ("config.json", "generation_config.json", "model.safetensors", "tokenizer.json",
                "tokenizer_config.json", "chat_template.jinja", "special_tokens_map.json")
@@ -43,15 +44,6 @@ def _json(path: Path) -> dict:
         raise ShipError(f"{path} is missing") from None
     except (OSError, ValueError) as exc:
         raise ShipError(f"cannot read {path} ({exc})") from None
-
-
-def sha256(path: Path) -> str:
-    """The hex sha256 of a file."""
-    h = hashlib.sha256()
-    with path.open("rb") as f:
-        for chunk in iter(lambda: f.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
 
 
 def _row(r: dict) -> dict:
@@ -121,7 +113,7 @@ def ship(run: Path, method: str, dest: Path, name: str, domain, log=print) -> di
     for f in MODEL_FILES:
         if (src / f).is_file():
             shutil.copy2(src / f, tmp / f)
-    rec["weights_sha256"] = sha256(tmp / "model.safetensors")
+    rec["weights_sha256"] = file_sha256(tmp / "model.safetensors")
     (tmp / PROVENANCE).write_text(json.dumps(rec, indent=1) + "\n", encoding="utf-8")
     if dest.exists():
         shutil.rmtree(dest)
