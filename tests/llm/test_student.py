@@ -135,3 +135,34 @@ def test_data_only_builds_the_teacher_data_and_trains_nothing(tmp_path, capsys):
     episodes = (out / "data" / "oracle.jsonl").read_text().splitlines()
     assert len(episodes) == 12  # split 0's 12 training personas x cereal x seed 100
     assert not (out / "student.json").exists() and not (out / "init").exists()
+
+
+def test_student_rdpo_is_reflection_dpo_from_the_shipped_student():
+    """`--model student-rdpo`: its training.json says Reflection-DPO on split 0, from the shipped student's very
+    weights (their sha256), on no evaluation scene, with the evaluation it was shipped with."""
+    from adaptbench.harness.methods import read_provenance
+    from adaptbench.llm.named import named_path, resolve_model
+    from adaptbench.training.pretrain import file_sha256 as sha256
+
+    rdpo = named_path("student-rdpo")
+    assert resolve_model("student-rdpo") == str(rdpo) and (rdpo / "model.safetensors").is_file()
+    prov = read_provenance(str(rdpo))
+    assert prov["method"] == "dpo" and str(prov["split"]) == "0" and not set(prov["scene_seeds"]) & {0, 1, 2, 3}
+    assert prov["base"]["weights_sha256"] == [sha256(named_path("student") / "model.safetensors")]
+    assert prov["weights_sha256"] == sha256(rdpo / "model.safetensors")
+    assert {p["personas"] for p in prov["evaluation"]["paired_with_base"]} == {"seen", "unseen"}
+
+
+@SKIP_MODELS
+def test_student_rdpo_rolls_out_and_eval_labels_it(tmp_path, capsys):
+    from adaptbench.cli import main
+
+    out = tmp_path / "r.jsonl"
+    assert main(["rollout", "--agent", "planner", "--model", "student-rdpo", "--personas", CASE[0], "--tasks",
+                 CASE[1], "--seeds", "0", "--out", str(out), "--quiet"]) == 0
+    rec = json.loads(out.read_text().splitlines()[0])
+    assert rec["steps"] and rec["steps"][-1]["action"] == "Declare Done"
+    capsys.readouterr()
+    assert main(["eval", str(out), "--no-ceiling"]) == 0
+    table = capsys.readouterr().out
+    assert "reflection-dpo  reflection-dpo  1" in table  # the method and split from its training.json: unseen

@@ -112,7 +112,7 @@ def ship(run: Path, method: str, dest: Path, name: str, domain, log=print) -> di
     tmp.mkdir(parents=True)
     for f in MODEL_FILES:
         if (src / f).is_file():
-            shutil.copy2(src / f, tmp / f)
+            shutil.copyfile(src / f, tmp / f)
     rec["weights_sha256"] = file_sha256(tmp / "model.safetensors")
     (tmp / PROVENANCE).write_text(json.dumps(rec, indent=1) + "\n", encoding="utf-8")
     if dest.exists():
