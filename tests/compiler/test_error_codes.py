@@ -81,7 +81,8 @@ def test_case_reports_its_codes(path, tmp_path, warm):
     if case.get("message"):
         texts = [d.message for d in diags if d.code in case["codes"]]
         assert any(case["message"] in t for t in texts), f"{path.name}: no message contains {case['message']!r}: {texts}"
-    assert took < 1.0, f"{path.name}: compiling the small spec took {took:.2f} s of CPU"
+    # a blow-up (an alias bomb expanded) takes far longer; ~1 s is normal here, so 3 s leaves machines' 2-3x spread
+    assert took < 3.0, f"{path.name}: compiling the small spec took {took:.2f} s of CPU"
 
 
 def test_every_documented_code_has_a_case():
