@@ -468,7 +468,7 @@ def _add_ship_command(msub) -> None:
 
 
 def add_commands(sub) -> None:
-    """Register `adapt model init`, `pretrain`, `get` and `import-gguf`."""
+    """Register `adapt model init`, `pretrain`, `student`, `curve`, `get`, `import-gguf` and `ship`."""
     from .episode import add_spec_option
 
     p = sub.add_parser("model", help="local models: `adapt model init --out DIR` builds the tiny test model")

@@ -19,11 +19,11 @@ import json
 import shutil
 from pathlib import Path
 
+from ..harness.methods import PROVENANCE  # training.json: adapt eval reads method and split from it
 from .pretrain import file_sha256
 
 MODEL_FILES = ("config.json", "generation_config.json", "model.safetensors", "tokenizer.json",
                "tokenizer_config.json", "chat_template.jinja", "special_tokens_map.json")
-PROVENANCE = "training.json"  # harness.methods.PROVENANCE: adapt eval reads method and split from it
 REFERENCE = "planner"  # the base student's row the method is paired with
 
 
