@@ -75,6 +75,22 @@ def test_interpret_answers(domain):
     assert set(interpret(domain, toppings, "Strawberries and walnuts please")) >= {"strawberry", "raw_walnuts"}
 
 
+def test_interpret_reads_a_negation_to_the_end_of_its_list_and_not_past_its_exception(domain):
+    """What a person at the table would serve: nothing the answer's negated list names (its class or the
+    item), the exception of "other than", and the default for an answer that rules nothing out."""
+    choice = {c.id: c for r in ("cereal", "eggs") for c in domain.recipe[r].choices}
+    toppings, milk, seasoning, fat = choice["toppings"], choice["milk"], choice["seasoning"], choice["fat"]
+    assert interpret(domain, toppings, "No toppings like fruit or nuts on my sweet breakfasts, please.") == ()
+    assert interpret(domain, milk, "For cereal please use dairy milk, not a nut-based milk like almond milk.") \
+        == "whole_milk"
+    assert interpret(domain, milk, "I only drink dairy milk, please no plant-based milks.") == "whole_milk"
+    assert set(interpret(domain, seasoning, "No spices other than salt and pepper on my eggs.")) \
+        == {"salt", "pepper"}
+    assert "butter" not in str(interpret(domain, fat, "Please don't use butter on toast or in cooking."))
+    assert interpret(domain, milk, "I don't have a particular preference about that.") == milk.default[0]
+    assert set(interpret(domain, toppings, "No fruit except kiwi, please.")) == {"kiwi"}
+
+
 def test_a_component_without_recipe_is_said_not_skipped_silently(domain, capsys):
     import dataclasses
 

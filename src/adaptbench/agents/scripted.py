@@ -91,6 +91,11 @@ class NeverAsk(ScriptedPolicy):
 
 # ------------------------------------------------------------------ always-ask
 _NEGATORS = {"no", "not", "without", "avoid", "never", "instead", "free", "skip", "nothing", "neither", "nor"}
+# where a negation's scope ends: its context ("in my coffee", "on sweet breakfasts"), an exception ("other
+# than salt", "except butter", "but", "unless"), or the next clause ("and", "so", "then", "plus")
+_SCOPE_ENDS = {"in", "on", "to", "with", "for", "at", "into", "onto", "when", "while", "if", "but", "except",
+               "other", "than", "unless", "and", "so", "then", "plus", "please"}
+_SCOPE = 6  # words at most
 
 
 def option_words(domain: CompiledDomain, value: str) -> tuple[set, set]:
@@ -109,12 +114,37 @@ def option_words(domain: CompiledDomain, value: str) -> tuple[set, set]:
 
 
 def _negated(answer: str) -> set:
-    toks = re.findall(r"[a-z]+", answer.lower())
+    """Content words inside a negation's scope: from a negator ("no", "without", "not", "don't" ...) to the
+    end of its list, i.e. up to a clause break (sentence punctuation), a word that starts the negation's
+    context or an exception ("on my toast", "in my coffee", "other than", "except", "but", "and"), at most
+    six words: "No toppings like fruit or nuts on my sweet breakfasts" negates toppings, fruit and nuts."""
+    return _scoped(answer, _NEGATORS)
+
+
+def _scoped(answer: str, starters: set) -> set:
+    """Content words in the scopes that `starters` open (see `_negated`); "don't" reads as "do not"."""
+    toks = re.findall(r"[a-z]+|[.;!?]", re.sub(r"\b(do|does)n't\b", r"\1 not", answer.lower()))
     out = set()
     for i, t in enumerate(toks):
-        if t in _NEGATORS:
-            out |= words(" ".join(toks[i + 1: i + 4]))
+        if t not in starters:
+            continue
+        scope = []
+        for w in toks[i + 1: i + 1 + _SCOPE]:
+            if w in _SCOPE_ENDS or not w.isalpha():
+                break
+            scope.append(w)
+        out |= words(" ".join(scope))
     return out
+
+
+def _ruled_out(value: str, spec: set, gen: set, said: set, negated: set) -> bool:
+    """Whether an answer rules an option out. A negated class of it ("no toppings like fruit") rules it out
+    unless the answer names it outside the negation ("no fruit except kiwi"); a negated word of its own
+    ("no plant-based milks") unless another of its own words is said outside it ("dairy milk")."""
+    free = said - negated
+    if gen & negated and not words(value.replace("_", " ")) & free:
+        return True
+    return bool(spec & negated) and not spec & free
 
 
 def interpret(domain: CompiledDomain, choice: Choice, answer: str):
@@ -123,17 +153,17 @@ def interpret(domain: CompiledDomain, choice: Choice, answer: str):
     scores = {}
     for v in choice.values:
         spec, gen = option_words(domain, v)
-        if (spec | gen) & negated and not spec & (said - negated):
+        if _ruled_out(v, spec, gen, said, negated):
             scores[v] = -1.0
             continue
         scores[v] = 2.0 * len(spec & said) + 1.0 * len(gen & said)
     if choice.multi:
         picked = tuple(v for v in choice.values if scores[v] >= 2.0)
-        return picked if picked or not negated else ()
+        return picked
     best = max(choice.values, key=lambda v: (scores[v], -choice.values.index(v)))
     if scores[best] > 0:
         return best
-    if "none" in choice.values and negated:
+    if "none" in choice.values and min(scores.values()) < 0:  # the answer ruled an option out: none of them
         return "none"
     return choice.default[0]
 
