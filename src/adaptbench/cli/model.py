@@ -7,10 +7,16 @@ import sys
 from pathlib import Path
 
 from ..install import install_hint
+from ..llm.tiny import WORD_SPLITS  # a constant: llm.tiny imports tokenizers only when it builds one
 
 DEVICE_HELP = ("where the model trains: cpu (default), or cuda on a GPU machine (float32 weights either way; "
                "a run resumes on either)")
 
+
+WORD_CHOICES = tuple(WORD_SPLITS)
+WORDS_HELP = ("how the new tokenizer splits text: joined (default: a word with the space after it, as the shipped "
+              "students) or spaced (a space is its own token and an id splits at its underscore, so a word of "
+              "the user's answer is the same token in an id or at an action's end; ~1.7x the tokens)")
 
 def add_rollout_options(p) -> None:
     """The model options of `adapt rollout` (used by the LLM agents only) and the step budget (every agent)."""
@@ -207,7 +213,7 @@ def _cmd_model_init(args) -> int:
         _fail(f"--out {out} exists and is not a directory")
     try:
         path = init_tiny(load_domain(args.spec), out, seed=args.seed, vocab_size=args.vocab,
-                         hidden=args.hidden, layers=args.layers)
+                         hidden=args.hidden, layers=args.layers, words=args.words)
     except ImportError as exc:
         _fail(f"{exc}; install the models extra: {install_hint('models')}")
     print(f"tiny model written to {path} (load it with --model {path})")
@@ -274,7 +280,7 @@ def _cmd_model_student(args) -> int:
         s = StudentSettings(split=args.split, tasks=tasks, ask_seeds=_seeds_or_none(args.ask_seeds, parse_seeds),
                             oracle_seeds=_seeds_or_none(args.oracle_seeds, parse_seeds),
                             pair_seeds=_seeds_or_none(args.pair_seeds, parse_seeds), hidden=args.hidden,
-                            layers=args.layers, steps=args.steps, lr=args.lr, seed=args.seed, workers=args.workers,
+                            layers=args.layers, words=args.words, steps=args.steps, lr=args.lr, seed=args.seed, workers=args.workers,
                             save_every=args.save_every, init=_init_model(args.init), device=args.device)
     except ValueError as exc:
         _fail(str(exc))
@@ -362,6 +368,7 @@ def _add_student_command(msub) -> None:
                                    "student to ask")
     q.add_argument("--hidden", type=int, default=d.hidden, help=f"default {d.hidden}")
     q.add_argument("--layers", type=int, default=d.layers, help=f"default {d.layers}")
+    q.add_argument("--words", choices=WORD_CHOICES, default=d.words, help="with no --init: " + WORDS_HELP)
     q.add_argument("--steps", type=int, default=d.steps, help=f"updates, one packed episode each (default {d.steps})")
     q.add_argument("--lr", type=float, default=d.lr, help=f"default {d.lr}")
     q.add_argument("--seed", type=int, default=d.seed, help="model initialisation and data order (default 0)")
@@ -482,6 +489,7 @@ def add_commands(sub) -> None:
     q.add_argument("--vocab", type=int, default=4096, help="tokenizer vocabulary size (default 4096)")
     q.add_argument("--hidden", type=int, default=64, help="hidden size (default 64: the test model)")
     q.add_argument("--layers", type=int, default=2, help="transformer layers (default 2)")
+    q.add_argument("--words", choices=WORD_CHOICES, default="joined", help=WORDS_HELP)
     q.set_defaults(func=_cmd_model_init)
     q = msub.add_parser("pretrain", help="fine-tune a model on recorded trajectories rendered with the planner prompt",
                         description="Replays each episode of the results files (oracle or teacher runs) to rebuild "

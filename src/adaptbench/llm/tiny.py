@@ -20,6 +20,12 @@ SPECIALS = ("<|pad|>", "<|bos|>", "<|end|>", "<|system|>", "<|user|>", "<|assist
 # is tokenized the same whether generated after it or read back in the history (a GPT-2 style split,
 # "Action:" + " Look", would tokenize the history differently from what the model generates).
 WORDS = r"\w+ ?|[^\w\s]+ ?|\s+"
+# How text splits into pre-tokens (`--words`). "joined": WORDS, a word with the space after it (the default,
+# what the shipped students use). "spaced": a space is a pre-token of its own and an id splits at its
+# underscore ("island_0" -> "island", "_", "0"), so a word is the same token wherever it stands: in the
+# user's answer ("at the kitchen island."), in an id, at an action's end ("Look for avocado"), where joined
+# splits give "island " / "island_0" / "avocado" three different tokens. The prompts are ~1.7x as many tokens.
+WORD_SPLITS = {"joined": WORDS, "spaced": r"[^\W_]+|_|[^\w\s]+|\s+"}
 CHAT_TEMPLATE = ("{{ bos_token }}{% for m in messages %}"
                  "{% if m['role'] not in ['system', 'user', 'assistant'] %}"
                  "{{ raise_exception('unknown role ' + m['role']) }}{% endif %}"
@@ -56,15 +62,15 @@ def corpus(domain) -> list:
     return texts
 
 
-def train_tokenizer(domain, vocab_size: int = 4096):
-    """A byte-level BPE tokenizer trained on `corpus(domain)`, wrapped for transformers with the chat
-    template and special tokens."""
+def train_tokenizer(domain, vocab_size: int = 4096, words: str = "joined"):
+    """A byte-level BPE tokenizer trained on `corpus(domain)`, its pre-tokens split as `WORD_SPLITS[words]`,
+    wrapped for transformers with the chat template and special tokens."""
     from tokenizers import Regex, Tokenizer, decoders, models, pre_tokenizers, trainers
     from transformers import PreTrainedTokenizerFast
 
     tok = Tokenizer(models.BPE())
     tok.pre_tokenizer = pre_tokenizers.Sequence([
-        pre_tokenizers.Split(Regex(WORDS), behavior="isolated"),
+        pre_tokenizers.Split(Regex(WORD_SPLITS[words]), behavior="isolated"),
         pre_tokenizers.ByteLevel(add_prefix_space=False, use_regex=False)])
     tok.decoder = decoders.ByteLevel()
     trainer = trainers.BpeTrainer(vocab_size=vocab_size, special_tokens=list(SPECIALS), show_progress=False,
@@ -92,11 +98,15 @@ def tiny_model(tokenizer, seed: int = 0, hidden: int = 64, layers: int = 2, head
     return model
 
 
-def init_tiny(domain, out, seed: int = 0, vocab_size: int = 4096, hidden: int = 64, layers: int = 2) -> Path:
-    """Build the tiny tokenizer and model and save both into `out` (created); returns the path."""
+def init_tiny(domain, out, seed: int = 0, vocab_size: int = 4096, hidden: int = 64, layers: int = 2,
+              words: str = "joined") -> Path:
+    """Build the tiny tokenizer (pre-tokens: `WORD_SPLITS[words]`) and model and save both into `out`
+    (created); returns the path."""
+    if words not in WORD_SPLITS:
+        raise ValueError(f"unknown word split '{words}' (choose from: {', '.join(WORD_SPLITS)})")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    tok = train_tokenizer(domain, vocab_size)
+    tok = train_tokenizer(domain, vocab_size, words)
     model = tiny_model(tok, seed, hidden, layers)
     tok.save_pretrained(out)
     model.save_pretrained(out)

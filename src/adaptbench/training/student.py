@@ -40,6 +40,7 @@ class StudentSettings:
     hidden: int = 128
     layers: int = 4
     vocab: int = 4096
+    words: str = "joined"  # how the new tokenizer splits text (`llm.tiny.WORD_SPLITS`); unused with `init`
     steps: int = 800  # updates, one packed episode each
     lr: float = 2e-3
     seed: int = 0  # model initialisation and data order
@@ -97,7 +98,7 @@ def build_student(domain, out, s: StudentSettings = StudentSettings(), log=print
     files = teacher_data(domain, s, out, progress)
     t_data = time.perf_counter() - t0
     base = Path(s.init) if s.init else init_tiny(domain, out / "init", seed=s.seed, vocab_size=s.vocab,
-                                                  hidden=s.hidden, layers=s.layers)
+                                                  hidden=s.hidden, layers=s.layers, words=s.words)
     r = pretrain(domain, base, files, out, steps=s.steps, lr=s.lr, seed=s.seed, log=log, checkpoints=out / "trainer",
                  save_every=s.save_every, device=s.device)
     before = _init_info(s.init)
