@@ -31,6 +31,30 @@ def pytest_collection_modifyitems(config, items):
             item.add_marker(pytest.mark.paper)
 
 
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_auto_num_workers(config):
+    """`-n auto`: one worker per core this process may run on (its CPU affinity and a cgroup CPU quota, which
+    psutil's count of the host's cores misses in a container), at most one per 3 GiB of memory (a worker
+    that loads a model peaks at 1-2 GiB). PYTEST_XDIST_AUTO_NUM_WORKERS=N still sets N."""
+    import os
+
+    if os.environ.get("PYTEST_XDIST_AUTO_NUM_WORKERS", "").isdigit():
+        return int(os.environ["PYTEST_XDIST_AUTO_NUM_WORKERS"])
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    try:  # cgroup v2: "max 100000" or "200000 100000" (quota, period)
+        quota, period = Path("/sys/fs/cgroup/cpu.max").read_text().split()
+        if quota != "max":
+            cores = min(cores, max(1, int(quota) // int(period)))
+    except (OSError, ValueError):
+        pass
+    try:
+        memory = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+        cores = min(cores, max(1, memory // (3 << 30)))
+    except (AttributeError, ValueError, OSError):
+        pass
+    return max(1, cores)
+
+
 def pytest_addoption(parser):
     parser.addoption("--update-golden", action="store_true", help="rewrite golden/snapshot files")
 
