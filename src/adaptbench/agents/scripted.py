@@ -118,15 +118,10 @@ def _negated(answer: str) -> set:
     end of its list, i.e. up to a clause break (sentence punctuation), a word that starts the negation's
     context or an exception ("on my toast", "in my coffee", "other than", "except", "but", "and"), at most
     six words: "No toppings like fruit or nuts on my sweet breakfasts" negates toppings, fruit and nuts."""
-    return _scoped(answer, _NEGATORS)
-
-
-def _scoped(answer: str, starters: set) -> set:
-    """Content words in the scopes that `starters` open (see `_negated`); "don't" reads as "do not"."""
     toks = re.findall(r"[a-z]+|[.;!?]", re.sub(r"\b(do|does)n't\b", r"\1 not", answer.lower()))
     out = set()
     for i, t in enumerate(toks):
-        if t not in starters:
+        if t not in _NEGATORS:
             continue
         scope = []
         for w in toks[i + 1: i + 1 + _SCOPE]:
