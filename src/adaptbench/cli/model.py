@@ -18,6 +18,7 @@ WORDS_HELP = ("how the new tokenizer splits text: joined (default: a word with t
               "students) or spaced (a space is its own token and an id splits at its underscore, so a word of "
               "the user's answer is the same token in an id or at an action's end; ~1.7x the tokens)")
 
+
 def add_rollout_options(p) -> None:
     """The model options of `adapt rollout` (used by the LLM agents only) and the step budget (every agent)."""
     from .argtypes import positive
@@ -280,8 +281,8 @@ def _cmd_model_student(args) -> int:
         s = StudentSettings(split=args.split, tasks=tasks, ask_seeds=_seeds_or_none(args.ask_seeds, parse_seeds),
                             oracle_seeds=_seeds_or_none(args.oracle_seeds, parse_seeds),
                             pair_seeds=_seeds_or_none(args.pair_seeds, parse_seeds), hidden=args.hidden,
-                            layers=args.layers, words=args.words, steps=args.steps, lr=args.lr, seed=args.seed, workers=args.workers,
-                            save_every=args.save_every, init=_init_model(args.init), device=args.device)
+                            layers=args.layers, words=args.words, steps=args.steps, lr=args.lr, seed=args.seed,
+                            workers=args.workers, save_every=args.save_every, init=_init_model(args.init), device=args.device)
     except ValueError as exc:
         _fail(str(exc))
     if min(args.steps, args.workers, args.save_every) < 1:

@@ -22,9 +22,9 @@ SPECIALS = ("<|pad|>", "<|bos|>", "<|end|>", "<|system|>", "<|user|>", "<|assist
 WORDS = r"\w+ ?|[^\w\s]+ ?|\s+"
 # How text splits into pre-tokens (`--words`). "joined": WORDS, a word with the space after it (the default,
 # what the shipped students use). "spaced": a space is a pre-token of its own and an id splits at its
-# underscore ("island_0" -> "island", "_", "0"), so a word is the same token wherever it stands: in the
-# user's answer ("at the kitchen island."), in an id, at an action's end ("Look for avocado"), where joined
-# splits give "island " / "island_0" / "avocado" three different tokens. The prompts are ~1.7x as many tokens.
+# underscore ("desk_0" -> "desk", "_", "0"), so a word is the same token wherever it stands: in the user's
+# answer, in an id, at an action's end. Joined gives "desk " ("my standing desk or") and "desk" ("desk_0"),
+# "avocado " ("avocado as a side") and "avocado" ("Look for avocado"). The prompts are ~1.7x as many tokens.
 WORD_SPLITS = {"joined": WORDS, "spaced": r"[^\W_]+|_|[^\w\s]+|\s+"}
 CHAT_TEMPLATE = ("{{ bos_token }}{% for m in messages %}"
                  "{% if m['role'] not in ['system', 'user', 'assistant'] %}"
