@@ -7,11 +7,16 @@ specs the tests write, so an extension of spec/ can only break the `paper` tests
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
 
 from adaptbench.compiler import load_domain
+
+# Every test searches the oracle's plans itself (tests time and interrupt rollouts, and change domains in
+# memory); tests/agents/test_plan_cache.py turns the cache on where it tests it. Child processes inherit this.
+os.environ.setdefault("ADAPT_ORACLE_CACHE", "0")
 
 ROOT = Path(__file__).resolve().parents[1]
 SPEC = ROOT / "spec"

@@ -27,6 +27,7 @@ from ..compiler.model import Choice, CompiledDomain, Persona, Task
 from ..harness.policy import Decision, Policy, View
 from ..runtime.env import Env
 from ..runtime.users import words
+from .plan_cache import searched
 from .plans import (
     PLAN,
     Executor,
@@ -414,7 +415,7 @@ class OraclePolicy(ScriptedPolicy):
         self._runs.pop(episode, None)
         self._reasons.pop(episode, None)
         oracle = self._oracles[episode] = Oracle(env.domain, env.task, env.persona, env.scene.seed, env.scene.full)
-        self._plans[episode] = oracle.search()
+        self._plans[episode] = searched(oracle)  # or the plan the same search found before (`plan_cache`)
 
     def executor(self, view: View) -> Executor:
         """An executor of the plan found at `start`, from the view's known world."""
