@@ -88,7 +88,8 @@ def test_eval_on_a_file_that_is_not_jsonl_says_so():
 def test_ctrl_c_while_a_model_loads_prints_a_line():
     """Ctrl-C while `adapt rollout --agent planner` prepares its model (held there: the test waits for it, then
     interrupts; no command catches it so early)."""
-    code = ("import sys, time, adaptbench.llm.named as n\n"
+    code = ("import faulthandler, signal, sys, time, adaptbench.llm.named as n\n"
+            "faulthandler.register(signal.SIGUSR1)\n"  # a hang prints where it is (below)
             "def slow(*a, **k):\n"
             "    print('loading', file=sys.stderr, flush=True); time.sleep(60)\n"
             "n.resolve_model = slow\n"
@@ -100,7 +101,13 @@ def test_ctrl_c_while_a_model_loads_prints_a_line():
         assert p.stderr.readline().strip() == "loading"
         time.sleep(0.2)
         p.send_signal(signal.SIGINT)
-        err = p.communicate(timeout=20)[1]
+        try:
+            err = p.communicate(timeout=20)[1]
+        except subprocess.TimeoutExpired:
+            p.send_signal(signal.SIGUSR1)  # the child's threads' stacks, for the failure message
+            time.sleep(1)
+            p.kill()
+            pytest.fail("no exit within 20 s of SIGINT; the child's stacks:\n" + p.communicate()[1][-4000:])
     finally:
         if p.poll() is None:
             p.kill()

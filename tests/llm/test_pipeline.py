@@ -246,3 +246,113 @@ def test_the_session_scale_is_the_measured_base_recipe(domain, tmp_path):
     assert arg == {"--hidden": "128", "--layers": "4", "--steps": "4000", "--oracle-seeds": "100-123", "--lr": "0.002"}
     units = dict(stages(domain, "0", SCALES["session"], tmp_path)[0].units)
     assert units["teacher_episode"] == 12 * 8 * 24 == 2304
+
+
+# A stand-in pipeline run side by side (--jobs 2): a; then b and c, which need only a; then d, which needs
+# every stage before it. Each stage logs "<name>+" when it starts and "<name>-" when it ends, sleeping
+# `nap` seconds between; a stage named in `fail` exits 3 after its nap.
+SIDE_DRIVER = textwrap.dedent("""
+    import sys
+    from pathlib import Path
+    from adaptbench.training.pipeline import Stage, StageFailed, run
+
+    out, nap, fail = Path(sys.argv[1]), sys.argv[2], sys.argv[3]
+    script = ("import sys, time, pathlib; o = pathlib.Path(sys.argv[1]); log = (o / 'log.txt').open('a'); "
+              "log.write(sys.argv[2] + '+' + chr(10)); log.flush(); time.sleep(float(sys.argv[3])); "
+              "log.write(sys.argv[2] + '-' + chr(10)); log.flush(); sys.exit(3 if sys.argv[2] == sys.argv[4] else 0)")
+    stages = [Stage("a", (("step", "a"),), (("start", 1),), after=()),
+              Stage("b", (("step", "b"),), (("start", 1),), after=("a",)),
+              Stage("c", (("step", "c"),), (("start", 1),), after=("a",)),
+              Stage("d", (("step", "d"),), (("start", 1),))]
+    try:
+        run(stages, out, log=lambda m: print(m, flush=True), jobs=2,
+            runner=lambda cmd: [sys.executable, "-c", script, str(out), cmd[1], nap if cmd[1] in "bc" else "0", fail])
+    except StageFailed as exc:
+        print("failed:", exc, flush=True)
+        sys.exit(1)
+    print("all done", flush=True)
+""")
+
+
+def _side(tmp_path, nap: str, fail: str = "-"):
+    env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
+    (tmp_path / "side.py").write_text(SIDE_DRIVER)
+    return subprocess.Popen([sys.executable, str(tmp_path / "side.py"), str(tmp_path / "out"), nap, fail], env=env,
+                            stdout=subprocess.PIPE, text=True, start_new_session=True)
+
+
+def _log(out) -> list:
+    return (out / "log.txt").read_text().split() if (out / "log.txt").is_file() else []
+
+
+def test_stages_that_do_not_need_each_other_run_side_by_side_and_the_rest_waits(tmp_path):
+    p = _side(tmp_path, "2")
+    text, _ = p.communicate(timeout=120)
+    log = _log(tmp_path / "out")
+    assert p.returncode == 0 and text.splitlines()[-1] == "all done", text
+    assert log[:2] == ["a+", "a-"] and log[-2:] == ["d+", "d-"]
+    assert set(log[2:4]) == {"b+", "c+"}  # both started before either ended
+    assert "2 stages at a time" in text.splitlines()[0]
+    assert "stage b: done in" in text and "stage c: done in" in text
+    rerun = _side(tmp_path, "0")
+    text, _ = rerun.communicate(timeout=120)
+    assert rerun.returncode == 0 and text.count("done (skipped)") == 4 and len(_log(tmp_path / "out")) == 8
+
+
+def test_a_failed_stage_lets_its_neighbour_finish_and_starts_nothing_after_it(tmp_path):
+    p = _side(tmp_path, "1", fail="b")
+    text, _ = p.communicate(timeout=120)
+    out = tmp_path / "out"
+    assert p.returncode == 1 and "failed: stage b" in text, text
+    assert (out / "c" / "done.json").is_file() and not (out / "b" / "done.json").exists()
+    assert "d+" not in _log(out)
+    again = _side(tmp_path, "0")  # fixed: the rerun runs b and d only
+    text, _ = again.communicate(timeout=120)
+    assert again.returncode == 0 and "stage c: done (skipped)" in text and _log(out)[-4:] == ["b+", "b-", "d+", "d-"]
+
+
+def test_ctrl_c_stops_every_stage_running_side_by_side(tmp_path):
+    out = tmp_path / "out"
+    p = _side(tmp_path, "60")
+    t0 = time.time()
+    while not {"b+", "c+"} <= set(_log(out)):
+        assert p.poll() is None and time.time() - t0 < 60
+        time.sleep(0.05)
+    p.send_signal(signal.SIGINT)  # the pipeline alone: its stages did not get the Ctrl-C
+    p.communicate(timeout=30)
+    assert p.returncode != 0 and time.time() - t0 < 40
+    time.sleep(0.5)
+    ps = subprocess.run(["ps", "-o", "stat=", "-g", str(p.pid)], capture_output=True, text=True).stdout.split()
+    assert [s for s in ps if not s.startswith("Z")] == [], ps
+    assert not (out / "b" / "done.json").exists() and not (out / "c" / "done.json").exists()
+
+
+def test_a_sigkill_of_the_pipeline_ends_the_stages_it_runs_side_by_side(tmp_path):
+    out = tmp_path / "out"
+    p = _side(tmp_path, "60")
+    t0 = time.time()
+    while not {"b+", "c+"} <= set(_log(out)):
+        assert p.poll() is None and time.time() - t0 < 60
+        time.sleep(0.05)
+    p.kill()  # the pipeline's process only; each stage's child was started from a thread of it
+    p.wait()
+    time.sleep(1)
+    ps = subprocess.run(["ps", "-o", "stat=", "-g", str(p.pid)], capture_output=True, text=True).stdout.split()
+    assert [s for s in ps if not s.startswith("Z")] == [], ps
+
+
+def test_the_estimate_of_stages_side_by_side_is_the_schedule_s_length(tmp_path):
+    from adaptbench.training.pipeline import Stage, estimate_lines, makespan
+
+    def st(name, after, n):
+        return Stage(name, (("x", name),), (("start", n),), costs="h32-l1", after=after)
+
+    plan = [st("a", (), 1), st("b", ("a",), 3), st("c", ("a",), 2), st("d", ("a",), 2), st("e", None, 1)]
+    sec = 10.0  # COSTS["h32-l1"]["start"]
+    assert makespan(plan, tmp_path, jobs=1) == 9 * sec
+    assert makespan(plan, tmp_path, jobs=2) == (1 + 4 + 1) * sec  # b alone; c then d beside it; e after all
+    assert makespan(plan, tmp_path, jobs=3) == (1 + 3 + 1) * sec
+    (tmp_path / "a").mkdir()
+    plan[0].marker(tmp_path).write_text(json.dumps({"commands": [["x", "a"]], "given": None}))
+    assert makespan(plan, tmp_path, jobs=2) == 5 * sec
+    assert estimate_lines(plan, tmp_path, jobs=2)[0].startswith("estimate: ~50 s for the stages left")

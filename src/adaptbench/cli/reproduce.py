@@ -34,14 +34,17 @@ def _cmd_reproduce(args) -> int:
         print(f"adapt: {exc}", file=sys.stderr)
         return 2
     plan = stages(domain, args.split, scale, Path(args.out), args.spec, base)
+    if args.jobs < 1:
+        print("adapt: --jobs must be at least 1", file=sys.stderr)
+        return 2
     if args.estimate:
         from ..training.pipeline import estimate_lines
 
-        print("\n".join(estimate_lines(plan, Path(args.out))))
+        print("\n".join(estimate_lines(plan, Path(args.out), args.jobs)))
         return 0
     try:
         rec = run(plan, Path(args.out), log, settings={"split": args.split, "scale": scale_dict(scale),
-                                                       "base": base["base"] if base else None})
+                                                       "base": base["base"] if base else None}, jobs=args.jobs)
     except StageFailed as exc:
         log(f"adapt: {exc}; fix it and run the same command again (the stages done are kept)")
         return 1
@@ -51,6 +54,12 @@ def _cmd_reproduce(args) -> int:
     print(f"reproduce ({args.scale}, split {args.split}) done in {rec['seconds_now']:.0f} s: Table 1/2 in "
           f"{args.out}/report/tables.md, figures in {args.out}/report/")
     return 0
+
+
+def _cores() -> int:
+    import os
+
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
 
 
 def add_reproduce(train_sub) -> None:
@@ -77,6 +86,10 @@ def add_reproduce(train_sub) -> None:
     p.add_argument("--train-steps", type=int, metavar="N",
                    help="optimizer steps of every trainer (dpo, no-reflection, sft, star-gate) instead of the "
                         "scale's (smoke 2, session 150): the same for every method, so the rows stay comparable")
+    p.add_argument("--jobs", type=int, default=min(2, _cores()),
+                   help="stages run side by side when they do not need each other (the base's evaluation, the "
+                        "pairs and STaR-GATE after the base; dpo, no-reflection and sft after the pairs), each one "
+                        "torch thread: default 2, or 1 on one core; 1 runs them in order. The results are the same")
     p.add_argument("--out", required=True, help="output directory (one folder per stage)")
     p.add_argument("--estimate", action="store_true", help="print the estimate and exit")
     p.set_defaults(func=_cmd_reproduce)

@@ -28,6 +28,9 @@ training personas, scene seeds 0-3 or fewer; everything else trains on scene see
 6. report: `adapt eval` (Table 1/2 and every method paired with the base planner on the same episodes:
    OUT/report/tables.md; the oracle's ceiling row is computed by `adapt eval` itself), the temporal figure and the questions figure (OUT/report/*.png).
 
+With `jobs` > 1 (`--jobs`, default 2) stages that do not need each other (`Stage.after`) run side by side:
+eval-base, pairs and star-gate after the base; dpo, no-reflection and sft after the pairs; the report last.
+
 Before it starts, the pipeline prints its estimate: each stage's seconds from a cost model (`COSTS`:
 seconds per unit of work, measured at smoke scale on 2 shared CPU cores, one torch thread) times its
 units. The stages run as child processes of `python -m adaptbench.cli` in the pipeline's process group; on
@@ -40,7 +43,9 @@ import json
 import os
 import subprocess
 import sys
+import threading
 import time
+from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
@@ -124,6 +129,7 @@ class Stage:
     units: tuple  # ((unit, count), ...)
     costs: str = "h32-l1"  # the row of COSTS
     given: dict | None = None  # what a stage with nothing to run records instead (`--base`: the base student)
+    after: tuple | None = None  # the stages it needs done first (None: every stage before it)
 
     def marker(self, out: Path) -> Path:
         """The done-marker of this stage."""
@@ -228,23 +234,23 @@ def stages(domain, split: str, s: Scale, out: Path, spec=None, base: dict | None
     n_teacher = len(training_personas(domain, split)) * ntask * _count(s.teacher_seeds)
     n_pairs = len(trainp) * ntask * _count(s.pair_seeds)
     n_eval = len(evalp) * ntask * _count(s.eval_seeds)
-    first = (Stage("base", (), (), given=given) if given else
+    first = (Stage("base", (), (), given=given, after=()) if given else
              Stage("base", (("model", "student", *spec_args, "--out", base, "--split", split, "--ask-seeds", "none",
                              "--oracle-seeds", s.teacher_seeds, "--tasks", tasks_arg, "--hidden", str(s.hidden),
                              "--layers", str(s.layers), "--steps", str(s.base_updates), "--lr", str(s.base_lr),
                              "--workers", "1", "--quiet"),),
-                   (("start", 1), ("teacher_episode", n_teacher), ("update", s.base_updates))))
+                   (("start", 1), ("teacher_episode", n_teacher), ("update", s.base_updates)), after=()))
     ev = out / "eval"
     where = [*common, "--personas", ",".join(evalp), "--seeds", s.eval_seeds, "--batch", str(s.batch), "--quiet"]
     n_steps = n_eval * s.max_steps  # evaluation steps of one agent (at most)
     result = [first,
               Stage("eval-base", (("rollout", "--agent", ",".join(BASE_AGENTS), "--model", base, *where,
                                    "--out", str(ev / "base.jsonl")),),
-                    (("start", 1), ("episode_step", len(BASE_AGENTS) * n_steps))),
+                    (("start", 1), ("episode_step", len(BASE_AGENTS) * n_steps)), after=("base",)),
               Stage("pairs", (("train", "data", *common, "--split", split, "--student", base, "--out",
                                str(out / "pairs"), "--personas", ",".join(trainp), "--seeds", s.pair_seeds,
                                "--batch", str(s.batch), "--workers", "1", *s.pair_args),),
-                    (("start", 1), ("pair_step", n_pairs * s.max_steps)))]
+                    (("start", 1), ("pair_step", n_pairs * s.max_steps)), after=("base",))]
 
     def evaluate(name: str, model) -> tuple:  # a method's evaluation rollouts, run as soon as it is trained
         return ("rollout", "--agent", "planner", "--model", str(model), *where, "--out", str(ev / f"{name}.jsonl"))
@@ -254,7 +260,7 @@ def stages(domain, split: str, s: Scale, out: Path, spec=None, base: dict | None
                                  "--max-steps", str(s.train_steps), "--threads", "1", *s.trainer_args,
                                  *(s.dpo_args if m != "sft" else ())), evaluate(m, out / m / "merged")),
                             (("start", 2), ("trainer_start", 1), ("train_step", s.train_steps),
-                             ("episode_step", n_steps))))
+                             ("episode_step", n_steps)), after=("pairs",)))
     rollouts = str(out / "star-gate" / "rollouts.jsonl")
     result.append(Stage("star-gate", (("rollout", "--agent", "planner", "--model", base, *common, "--personas",
                                        ",".join(trainp), "--seeds", s.pair_seeds, "--out", rollouts,
@@ -264,7 +270,7 @@ def stages(domain, split: str, s: Scale, out: Path, spec=None, base: dict | None
                                        "--threads", "1", *s.trainer_args),
                                       evaluate("star-gate", out / "star-gate" / "model" / "merged")),
                         (("start", 3), ("trainer_start", 1), ("episode_step", n_pairs * s.max_steps + n_steps),
-                         ("train_step", s.train_steps))))
+                         ("train_step", s.train_steps)), after=("base",)))
     rep = out / "report"
     files = [str(ev / f"{m}.jsonl") for m in ("base", *METHODS)]
     star = f"star-gate@{split}={ev / 'star-gate.jsonl'}"  # its rollouts' records name no split
@@ -280,18 +286,38 @@ def stage_seconds(stage: Stage) -> float:
     return sum(COSTS[stage.costs][u] * n for u, n in stage.units)
 
 
-def estimate_lines(all_stages: list, out: Path) -> list:
-    """The estimate printed before a run: one line per stage (done, or its seconds) and the total left."""
-    lines, left = [], 0.0
+def needs(all_stages: list) -> dict:
+    """Stage name -> the names of the stages it needs done first (`Stage.after`; None: all before it)."""
+    names = [st.name for st in all_stages]
+    return {st.name: set(names[:i] if st.after is None else st.after) for i, st in enumerate(all_stages)}
+
+
+def makespan(all_stages: list, out: Path, jobs: int = 1) -> float:
+    """The cost model's seconds for the stages not done, run `jobs` at a time as `run` schedules them (each
+    stage, in order, as soon as a slot is free and the stages it needs are done)."""
+    need, end, free = needs(all_stages), {}, [0.0] * max(1, jobs)
+    for st in all_stages:
+        ready = max((end.get(n, 0.0) for n in need[st.name]), default=0.0)
+        if st.done(out):
+            end[st.name] = ready
+            continue
+        slot = min(range(len(free)), key=lambda i: max(free[i], ready))
+        end[st.name] = free[slot] = max(free[slot], ready) + stage_seconds(st)
+    return max(end.values(), default=0.0)
+
+
+def estimate_lines(all_stages: list, out: Path, jobs: int = 1) -> list:
+    """The estimate printed before a run: one line per stage (done, or its seconds) and the total left
+    (with `jobs` > 1, the time of the schedule that runs independent stages side by side)."""
+    lines = []
     for st in all_stages:
         if st.done(out):
             lines.append(f"  {st.name:<14} done")
             continue
-        sec = stage_seconds(st)
-        left += sec
-        lines.append(f"  {st.name:<14} ~{_duration(sec)}" + (f" (given: {st.given['base']})" if st.given else ""))
-    return [f"estimate: ~{_duration(left)} for the stages left (cost model of training.pipeline, 2 CPU cores):",
-            *lines]
+        lines.append(f"  {st.name:<14} ~{_duration(stage_seconds(st))}" + (f" (given: {st.given['base']})" if st.given else ""))
+    at_once = f", {jobs} stages at a time" if jobs > 1 else ""
+    return [f"estimate: ~{_duration(makespan(all_stages, out, jobs))} for the stages left (cost model of "
+            f"training.pipeline, 2 CPU cores{at_once}):", *lines]
 
 
 def _duration(sec: float) -> str:
@@ -302,6 +328,10 @@ def _duration(sec: float) -> str:
     return f"{sec / 3600:.1f} h"
 
 
+_LIVE: set = set()  # the stage commands running now (Popen), so that a Ctrl-C can stop them all
+_LIVE_LOCK = threading.Lock()
+
+
 def run_stage(stage: Stage, out: Path, log=print, runner=None) -> float:
     """Run a stage's commands (a failing one raises StageFailed) and write its done-marker; seconds."""
     (out / stage.name).mkdir(parents=True, exist_ok=True)
@@ -309,7 +339,7 @@ def run_stage(stage: Stage, out: Path, log=print, runner=None) -> float:
     for cmd in stage.commands:
         argv = [sys.executable, "-m", "adaptbench.cli", *cmd] if runner is None else runner(cmd)
         log(f"$ adapt {' '.join(cmd)}")
-        rc = subprocess.run(argv, env={**os.environ, "PYTHONUNBUFFERED": "1"}, preexec_fn=_die_with_parent).returncode
+        rc = _run_command(argv)
         if rc != 0:
             raise StageFailed(stage.name, cmd, rc)
     sec = time.perf_counter() - t0
@@ -320,6 +350,35 @@ def run_stage(stage: Stage, out: Path, log=print, runner=None) -> float:
                                "given": stage.given}, indent=1) + "\n")
     tmp.replace(marker)  # atomic: a kill leaves the marker whole or absent
     return sec
+
+
+def _run_command(argv: list) -> int:
+    """Run one stage command to its end; its exit status. A Ctrl-C while it runs stops it (`stop_children`)."""
+    proc = subprocess.Popen(argv, env={**os.environ, "PYTHONUNBUFFERED": "1"}, preexec_fn=_die_with_parent)
+    with _LIVE_LOCK:
+        _LIVE.add(proc)
+    try:
+        return proc.wait()
+    except KeyboardInterrupt:
+        stop_children()
+        raise
+    finally:
+        with _LIVE_LOCK:
+            _LIVE.discard(proc)
+
+
+def stop_children(grace: float = 2.0) -> None:
+    """Stop every stage command still running: each has `grace` seconds to finish on the Ctrl-C it got with
+    the pipeline (it writes what it has), then it is killed (its work resumes on the next run)."""
+    with _LIVE_LOCK:
+        procs = list(_LIVE)
+    deadline = time.monotonic() + grace
+    for p in procs:
+        try:
+            p.wait(timeout=max(0.0, deadline - time.monotonic()))
+        except subprocess.TimeoutExpired:
+            p.kill()
+            p.wait()
 
 
 def _die_with_parent() -> None:
@@ -342,28 +401,89 @@ class StageFailed(RuntimeError):
         self.stage, self.rc = stage, rc
 
 
-def run(all_stages: list, out: Path, log=print, runner=None, settings: dict | None = None) -> dict:
-    """Print the estimate, run every stage not done, in order; OUT/pipeline.json records the stages'
-    seconds against their estimates. Returns that record."""
+def run(all_stages: list, out: Path, log=print, runner=None, settings: dict | None = None, jobs: int = 1) -> dict:
+    """Print the estimate, run every stage not done: in order, or with `jobs` > 1 up to `jobs` at a time, each
+    as soon as the stages it needs are done (`Stage.after`). OUT/pipeline.json records the stages' seconds
+    against their estimates. Returns that record. A failed stage lets the running ones finish, starts no new
+    one, and is raised (StageFailed); a Ctrl-C stops every running stage (`stop_children`)."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    for line in estimate_lines(all_stages, out):
+    for line in estimate_lines(all_stages, out, jobs):
         log(line)
-    record = {"settings": settings or {}, "stages": []}
     t0 = time.perf_counter()
-    for st in all_stages:
-        if st.done(out):
-            log(f"stage {st.name}: done (skipped)")
-        elif st.given:
-            log(f"stage {st.name}: given ({st.given['base']}), nothing to run")
-            run_stage(st, out, log, runner)
-        else:
-            log(f"stage {st.name}: running (~{_duration(stage_seconds(st))})")
-            run_stage(st, out, log, runner)
-        record["stages"].append(json.loads(st.marker(out).read_text()))
-    record["seconds_now"] = round(time.perf_counter() - t0, 1)
+    if jobs > 1:
+        _run_side_by_side(all_stages, out, log, runner, jobs)
+    else:
+        for st in all_stages:
+            _start(st, out, log, runner)
+    record = {"settings": settings or {}, "jobs": jobs,
+              "stages": [json.loads(st.marker(out).read_text()) for st in all_stages],
+              "seconds_now": round(time.perf_counter() - t0, 1)}
     (out / "pipeline.json").write_text(json.dumps(record, indent=1) + "\n")
     return record
+
+
+def _start(st: Stage, out: Path, log, runner) -> None:
+    """Run one stage (or note it done) and log it."""
+    if st.done(out):
+        log(f"stage {st.name}: done (skipped)")
+        return
+    if st.given:
+        log(f"stage {st.name}: given ({st.given['base']}), nothing to run")
+    else:
+        log(f"stage {st.name}: running (~{_duration(stage_seconds(st))})")
+    run_stage(st, out, log, runner)
+
+
+def _run_side_by_side(all_stages: list, out: Path, log, runner, jobs: int) -> None:
+    """`run` with up to `jobs` stages at a time (threads, each waiting on its stage's child process)."""
+    need, done, waiting, running, failed = needs(all_stages), set(), list(all_stages), {}, []
+    with ThreadPoolExecutor(jobs, thread_name_prefix="stage") as pool:
+        try:
+            while waiting or running:
+                if not failed:
+                    _launch_ready(waiting, running, done, need, jobs, lambda st: pool.submit(_start, st, out, log, runner),
+                                  out, log)
+                if not running:
+                    break  # nothing left that can start (a stage failed)
+                finished, _ = wait(running, timeout=0.5, return_when=FIRST_COMPLETED)
+                for f in finished:
+                    _collect(running.pop(f), f, running, done, failed, out, log)
+        except KeyboardInterrupt:
+            stop_children()
+            raise
+    if failed:
+        raise failed[0]
+
+
+def _launch_ready(waiting: list, running: dict, done: set, need: dict, jobs: int, submit, out: Path, log) -> None:
+    """Start, in order, each waiting stage whose needs are done while a slot is free (a stage done before is
+    noted at once)."""
+    ready = [st for st in waiting if need[st.name] <= done]
+    while ready:
+        st = ready.pop(0)
+        if st.done(out):
+            waiting.remove(st)
+            log(f"stage {st.name}: done (skipped)")
+            done.add(st.name)  # the stages that need it may be ready now
+            ready = [w for w in waiting if need[w.name] <= done and w not in running.values()]
+        elif len(running) < jobs:
+            waiting.remove(st)
+            running[submit(st)] = st
+
+
+def _collect(st: Stage, future, running: dict, done: set, failed: list, out: Path, log) -> None:
+    """Record a finished stage: done (logged with its seconds), or its StageFailed kept for the end."""
+    try:
+        future.result()
+    except StageFailed as exc:
+        failed.append(exc)
+        if running:
+            log(f"stage {st.name} failed; waiting for {', '.join(r.name for r in running.values())} to finish "
+                "(Ctrl-C stops them; a rerun resumes them)")
+        return
+    done.add(st.name)
+    log(f"stage {st.name}: done in {_duration(json.loads(st.marker(out).read_text())['seconds'])}")
 
 
 def scale_dict(s: Scale) -> dict:
@@ -372,4 +492,4 @@ def scale_dict(s: Scale) -> dict:
 
 
 __all__ = ["COSTS", "EVAL_SEEDS", "SCALES", "BadBase", "Scale", "Stage", "StageFailed", "check_base", "estimate_lines",
-           "run", "stages"]
+           "makespan", "needs", "run", "stages", "stop_children"]
