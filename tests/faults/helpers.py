@@ -13,6 +13,15 @@ SPEC = ROOT / "spec"
 MEMORY = 1 << 30  # 1 GiB of address space is plenty for any command on a hostile spec
 
 
+def sigint_as_in_a_terminal() -> None:
+    """A child's SIGINT as a terminal's foreground job has it (preexec_fn): the default handler. A shell
+    starts a background job (`cmd &`, a CI step run that way) with SIGINT ignored, every descendant inherits
+    that, and Python then installs no KeyboardInterrupt handler, so a Ctrl-C test would test nothing."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _limits(memory: int):
     def apply():
         resource.setrlimit(resource.RLIMIT_AS, (memory, memory))

@@ -16,7 +16,7 @@ import time
 
 import pytest
 
-from .helpers import ROOT, adapt
+from .helpers import ROOT, adapt, sigint_as_in_a_terminal
 
 SMALL = ROOT / "tests" / "spec_small"
 
@@ -96,7 +96,7 @@ def test_ctrl_c_while_a_model_loads_prints_a_line():
             "from adaptbench.cli.main import main; sys.exit(main(sys.argv[1:]))")
     p = subprocess.Popen([sys.executable, "-c", code, "rollout", "--agent", "planner", "--model", "student",
                           "--personas", "juan", "--tasks", "eggs", "--out", os.devnull], cwd=ROOT,
-                         stderr=subprocess.PIPE, text=True)
+                         stderr=subprocess.PIPE, text=True, preexec_fn=sigint_as_in_a_terminal)
     try:
         assert p.stderr.readline().strip() == "loading"
         time.sleep(0.2)

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import pytest
 
+from ..faults.helpers import sigint_as_in_a_terminal
 from .conftest import SKIP_MODELS
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -278,7 +279,7 @@ def _side(tmp_path, nap: str, fail: str = "-"):
     env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
     (tmp_path / "side.py").write_text(SIDE_DRIVER)
     return subprocess.Popen([sys.executable, str(tmp_path / "side.py"), str(tmp_path / "out"), nap, fail], env=env,
-                            stdout=subprocess.PIPE, text=True, start_new_session=True)
+                            stdout=subprocess.PIPE, text=True, start_new_session=True, preexec_fn=sigint_as_in_a_terminal)
 
 
 def _log(out) -> list:

@@ -20,8 +20,10 @@ import json
 import os
 from pathlib import Path
 
+from ..runtime.tables import IdentityLRU
+
 _CODE: list = []  # the package source's digest, computed once per process
-_DOMAINS: dict = {}  # id(domain) -> (domain, digest of its contents): a few recent domains
+_DOMAINS = IdentityLRU(4)  # domain -> the digest of its contents (it holds the domain it keys)
 
 
 def enabled() -> bool:
@@ -43,12 +45,7 @@ def code_digest() -> str:
 def domain_digest(domain) -> str:
     """A digest of the compiled domain's contents (its repr: frozen dataclasses, tuples and dicts in a fixed
     order, so the same in every process)."""
-    hit = _DOMAINS.get(id(domain))
-    if hit is None or hit[0] is not domain:
-        if len(_DOMAINS) >= 4:
-            _DOMAINS.clear()
-        hit = _DOMAINS[id(domain)] = (domain, hashlib.sha256(repr(domain).encode()).hexdigest())
-    return hit[1]
+    return _DOMAINS.get_or_build(domain, lambda: hashlib.sha256(repr(domain).encode()).hexdigest())
 
 
 def entry(oracle) -> Path:
