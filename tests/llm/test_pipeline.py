@@ -282,6 +282,15 @@ def _side(tmp_path, nap: str, fail: str = "-"):
                             stdout=subprocess.PIPE, text=True, start_new_session=True, preexec_fn=sigint_as_in_a_terminal)
 
 
+def _until_b_and_c_run(p, out) -> float:
+    """Wait until stages b and c both run (side by side); the time the wait began."""
+    t0 = time.time()
+    while not {"b+", "c+"} <= set(_log(out)):
+        assert p.poll() is None and time.time() - t0 < 60
+        time.sleep(0.05)
+    return t0
+
+
 def _log(out) -> list:
     return (out / "log.txt").read_text().split() if (out / "log.txt").is_file() else []
 
@@ -315,10 +324,7 @@ def test_a_failed_stage_lets_its_neighbour_finish_and_starts_nothing_after_it(tm
 def test_ctrl_c_stops_every_stage_running_side_by_side(tmp_path):
     out = tmp_path / "out"
     p = _side(tmp_path, "60")
-    t0 = time.time()
-    while not {"b+", "c+"} <= set(_log(out)):
-        assert p.poll() is None and time.time() - t0 < 60
-        time.sleep(0.05)
+    t0 = _until_b_and_c_run(p, out)
     p.send_signal(signal.SIGINT)  # the pipeline alone: its stages did not get the Ctrl-C
     p.communicate(timeout=30)
     assert p.returncode != 0 and time.time() - t0 < 40
@@ -331,10 +337,7 @@ def test_ctrl_c_stops_every_stage_running_side_by_side(tmp_path):
 def test_a_sigkill_of_the_pipeline_ends_the_stages_it_runs_side_by_side(tmp_path):
     out = tmp_path / "out"
     p = _side(tmp_path, "60")
-    t0 = time.time()
-    while not {"b+", "c+"} <= set(_log(out)):
-        assert p.poll() is None and time.time() - t0 < 60
-        time.sleep(0.05)
+    _until_b_and_c_run(p, out)
     p.kill()  # the pipeline's process only; each stage's child was started from a thread of it
     p.wait()
     time.sleep(1)
