@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import os
 import sys
 
 
@@ -22,6 +23,9 @@ def _cmd_reproduce(args) -> int:
         print(f"adapt: unknown split '{args.split}' (choose from: {', '.join(sorted(unseen)) or 'none'})",
               file=sys.stderr)
         return 2
+    if args.jobs < 1:
+        print("adapt: --jobs must be at least 1", file=sys.stderr)
+        return 2
     scale = SCALES[args.scale]
     if args.train_steps is not None:
         if args.train_steps < 1:
@@ -34,9 +38,6 @@ def _cmd_reproduce(args) -> int:
         print(f"adapt: {exc}", file=sys.stderr)
         return 2
     plan = stages(domain, args.split, scale, Path(args.out), args.spec, base)
-    if args.jobs < 1:
-        print("adapt: --jobs must be at least 1", file=sys.stderr)
-        return 2
     if args.estimate:
         from ..training.pipeline import estimate_lines
 
@@ -54,12 +55,6 @@ def _cmd_reproduce(args) -> int:
     print(f"reproduce ({args.scale}, split {args.split}) done in {rec['seconds_now']:.0f} s: Table 1/2 in "
           f"{args.out}/report/tables.md, figures in {args.out}/report/")
     return 0
-
-
-def _cores() -> int:
-    import os
-
-    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
 
 
 def add_reproduce(train_sub) -> None:
@@ -86,7 +81,7 @@ def add_reproduce(train_sub) -> None:
     p.add_argument("--train-steps", type=int, metavar="N",
                    help="optimizer steps of every trainer (dpo, no-reflection, sft, star-gate) instead of the "
                         "scale's (smoke 2, session 150): the same for every method, so the rows stay comparable")
-    p.add_argument("--jobs", type=int, default=min(2, _cores()),
+    p.add_argument("--jobs", type=int, default=min(2, os.cpu_count() or 1),
                    help="stages run side by side when they do not need each other (the base's evaluation, the "
                         "pairs and STaR-GATE after the base; dpo, no-reflection and sft after the pairs), each one "
                         "torch thread: default 2, or 1 on one core; 1 runs them in order. The results are the same")

@@ -466,7 +466,7 @@ def _launch_ready(waiting: list, running: dict, done: set, need: dict, jobs: int
             waiting.remove(st)
             log(f"stage {st.name}: done (skipped)")
             done.add(st.name)  # the stages that need it may be ready now
-            ready = [w for w in waiting if need[w.name] <= done and w not in running.values()]
+            ready = [w for w in waiting if need[w.name] <= done]
         elif len(running) < jobs:
             waiting.remove(st)
             running[submit(st)] = st
