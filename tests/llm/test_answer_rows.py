@@ -60,3 +60,38 @@ def test_pair_rows_on_the_evaluation_seeds_are_refused(tmp_path, capsys):
                  "--pair-seeds", "0-1"]) == 2
     err = capsys.readouterr().err
     assert "--pair-seeds" in err and "100" in err and "Traceback" not in err
+
+
+def test_templated_replies_name_every_option_and_each_reads_back_to_its_own(domain):
+    """`said_rows`: a plain reply per option of every asked choice ("I'd like oat milk."), read by the
+    always-ask agent as that option alone; the two sides differ only in the reply and act differently, and
+    no persona's preference text is a reply."""
+    from adaptbench.agents.plans import all_recipes, choice_points
+    from adaptbench.llm.probe import asked_for, said_pairs
+    from adaptbench.training.answer_rows import said_rows
+
+    pairs = said_pairs(domain, tasks=["eggs"], seeds=[100])
+    choices = dict(choice_points(domain, all_recipes(domain, domain.task["eggs"])))
+    prefs = {p.answer for per in domain.personas for p in per.preferences}
+    assert len({(p.choice, p.a.option) for p in pairs}) > 20
+    for p in pairs:
+        choice = choices[p.choice]
+        for side in (p.a, p.b):
+            assert asked_for(domain, choice, side.answer) == ((side.option,) if choice.multi else side.option)
+            assert side.answer not in prefs and side.persona == "said"
+        assert p.a.action != p.b.action and p.a.option != p.b.option
+    rows = said_rows(domain, [100], places=("start",), tasks=["eggs"])
+    assert len(rows) == 2 * len(said_pairs(domain, tasks=["eggs"], seeds=[100], at="start"))
+    for a, b in zip(rows[::2], rows[1::2], strict=True):
+        differ = [i for i, (x, y) in enumerate(zip(a["messages"], b["messages"], strict=True)) if x != y]
+        assert len(differ) == 1 and a["messages"][differ[0]]["content"].startswith("The user replied:")
+
+
+def test_a_rows_dialogue_starts_at_the_turn_before_its_question_and_keeps_the_reply(rows):
+    from adaptbench.training.answer_rows import dialogue
+
+    for r in rows[:40]:
+        cut = dialogue(r["messages"])
+        assert all(m["role"] != "system" for m in cut) and cut[0]["role"] == "user"
+        assert cut[1]["content"].startswith("Action: Ask") and r["messages"][-len(cut):] == cut
+        assert any(m["content"].startswith("The user replied:") or "\nThe user replied:" in m["content"] for m in cut)

@@ -280,21 +280,23 @@ def _cmd_model_student(args) -> int:
         training_personas(domain, args.split)
         s = StudentSettings(split=args.split, tasks=tasks, ask_seeds=_seeds_or_none(args.ask_seeds, parse_seeds),
                             oracle_seeds=_seeds_or_none(args.oracle_seeds, parse_seeds),
-                            pair_seeds=_seeds_or_none(args.pair_seeds, parse_seeds), hidden=args.hidden,
+                            pair_seeds=_seeds_or_none(args.pair_seeds, parse_seeds),
+                            said_seeds=_seeds_or_none(args.said_seeds, parse_seeds), rows_context=args.rows_context,
+                            accumulate=args.accumulate, hidden=args.hidden,
                             layers=args.layers, words=args.words, steps=args.steps, lr=args.lr, seed=args.seed,
                             workers=args.workers, save_every=args.save_every, init=_init_model(args.init), device=args.device)
     except ValueError as exc:
         _fail(str(exc))
-    if min(args.steps, args.workers, args.save_every) < 1:
-        _fail("--steps, --workers and --save-every must be at least 1")
+    if min(args.steps, args.workers, args.save_every, args.accumulate) < 1:
+        _fail("--steps, --workers, --save-every and --accumulate must be at least 1")
     _check_train_device(args.device)
-    if not s.ask_seeds and not s.oracle_seeds and not s.pair_seeds:
-        _fail("--ask-seeds, --oracle-seeds and --pair-seeds are all none: give one of them scene seeds "
-              "(e.g. --oracle-seeds 100)")
+    if not (s.ask_seeds or s.oracle_seeds or s.pair_seeds or s.said_seeds):
+        _fail("--ask-seeds, --oracle-seeds, --pair-seeds and --said-seeds are all none: give one of them scene "
+              "seeds (e.g. --oracle-seeds 100)")
     from ..harness.seeds import overlap_message
 
     for flag, seeds in (("--ask-seeds", s.ask_seeds), ("--oracle-seeds", s.oracle_seeds),
-                        ("--pair-seeds", s.pair_seeds)):
+                        ("--pair-seeds", s.pair_seeds), ("--said-seeds", s.said_seeds)):
         line = overlap_message(flag, seeds)
         if line and not args.allow_eval_seeds:
             _fail(line)
@@ -338,6 +340,7 @@ def _seeds_or_none(text: str, parse) -> tuple:
 
 def _add_student_command(msub) -> None:
     from ..harness.seeds import seeds_text
+    from ..training.answer_rows import CONTEXTS
     from ..training.student import StudentSettings
     from .episode import add_spec_option
 
@@ -361,6 +364,18 @@ def _add_student_command(msub) -> None:
                         "pair of the training personas in those scenes, each its prompt and its answer's action "
                         "(training/answer_rows.py), e.g. --init BASE --ask-seeds none --pair-seeds 100-111 to teach "
                         "a base to act on replies")
+    q.add_argument("--said-seeds", default="none",
+                   help="scene seeds of templated-reply rows (default none): for every option of every question "
+                        "a recipe asks, a plain reply naming it (\"I'd like oat milk.\") against another option's, "
+                        "each side its prompt and its plan's action; they cover every option and use no persona's "
+                        "words (training/answer_rows.py said_rows)")
+    q.add_argument("--rows-context", choices=CONTEXTS, default=d.rows_context,
+                   help="what of an answer row's prompt is trained on: full (default, the planner prompt) or "
+                        "dialogue (from the turn before the question onward, no system message: ~3x fewer tokens, "
+                        "so ~3x the rows an hour; bench/answer_context.py measures how it carries over)")
+    q.add_argument("--accumulate", type=int, default=d.accumulate,
+                   help=f"sequences (packed episodes or answer rows) an update, each weighing the same (default "
+                        f"{d.accumulate}); e.g. 8 to see answer rows eight at a time")
     q.add_argument("--allow-eval-seeds", action="store_true",
                    help="train on the evaluation scene seeds 0-3 anyway (refused by default: `adapt eval` flags them)")
     q.add_argument("--tasks", default="all", help="'all' (default) or comma-separated task ids")
@@ -370,7 +385,8 @@ def _add_student_command(msub) -> None:
     q.add_argument("--hidden", type=int, default=d.hidden, help=f"default {d.hidden}")
     q.add_argument("--layers", type=int, default=d.layers, help=f"default {d.layers}")
     q.add_argument("--words", choices=WORD_CHOICES, default=d.words, help="with no --init: " + WORDS_HELP)
-    q.add_argument("--steps", type=int, default=d.steps, help=f"updates, one packed episode each (default {d.steps})")
+    q.add_argument("--steps", type=int, default=d.steps,
+                   help=f"updates, --accumulate sequences (packed episodes or answer rows) each (default {d.steps})")
     q.add_argument("--lr", type=float, default=d.lr, help=f"default {d.lr}")
     q.add_argument("--seed", type=int, default=d.seed, help="model initialisation and data order (default 0)")
     q.add_argument("--workers", type=int, default=d.workers, help=f"rollout processes (default {d.workers})")

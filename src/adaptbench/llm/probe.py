@@ -243,6 +243,79 @@ def build_pairs(domain, tasks=None, personas=None, seeds=(0,), at: str = "recipe
     return out
 
 
+# ------------------------------------------------------------------ templated answers (training data)
+SAYINGS = ("I'd like {}.", "{}, please.", "I prefer {}.", "Please use {}.")  # one per scene seed, in turn
+
+
+def option_phrases(domain, value: str) -> list:
+    """Ways to name an option in a reply, plainest first: its id's words (not an instance's: `table 0`), its
+    description, its category."""
+    spec = domain.substance.get(value) or domain.entity.get(value)
+    out = [] if re.search(r"_\d+$", value) else [value.replace("_", " ")]
+    if spec is not None:
+        out += [spec.description, spec.category.replace("_", " ")]
+    return list(dict.fromkeys(p for p in out if p))
+
+
+def said_answer(domain, choice, value: str, saying: str) -> str | None:
+    """A templated reply asking for exactly `value` (the always-ask reading of it gives that option and
+    no other), or None when no phrase of the option reads back to it alone."""
+    want = (value,) if choice.multi else value
+    for phrase in option_phrases(domain, value):
+        answer = saying.format(phrase)
+        answer = answer[0].upper() + answer[1:]
+        if asked_for(domain, choice, answer) == want:
+            return answer
+    return None
+
+
+def said_pairs(domain, tasks=None, seeds=(100,), at: str = "recipe", persona=None, max_steps: int = 50) -> list:
+    """Pairs like `build_pairs`', with templated replies in place of personas' preferences: for every asked
+    choice point of each task and every option of it but "none", a reply naming that option (`said_answer`,
+    the saying chosen by the scene seed) against the next option (in the choice's order, wrapping round)
+    whose plan acts differently. They
+    cover every option, where personas' answers cover those some persona prefers, and use no persona's
+    words (`persona`, default the first, only hosts the episode). Sides are labelled persona "said"."""
+    if at not in PLACES:
+        raise ValueError(f"unknown place '{at}' (choose from: {', '.join(PLACES)})")
+    tasks = [domain.task[t] for t in tasks] if tasks else list(domain.tasks)
+    host = domain.persona[persona] if persona else domain.personas[0]
+    builder = PromptBuilder(domain, "planner")
+    out = []
+    for seed in seeds:
+        saying = SAYINGS[seed % len(SAYINGS)]
+        for task in tasks:
+            base = defaults(domain, all_recipes(domain, task))
+            for key, choice in choice_points(domain, all_recipes(domain, task)):
+                if not choice.ask:
+                    continue
+                said = {v: said_answer(domain, choice, v, saying) for v in choice.values if v != "none"}
+                said = {v: a for v, a in said.items() if a}
+                for v in said:
+                    pair = _said_pair(domain, task, host, key, choice, base, said, v, seed, at, max_steps, builder)
+                    if pair is not None:
+                        out.append(pair)
+    return out
+
+
+def _said_pair(domain, task, host, key, choice, base, said, value, seed, at, max_steps, builder):
+    """The pair of one option's templated reply against the first other option that acts differently."""
+    def plan(v):
+        return {**base, key: (v,) if choice.multi else v}
+    a = trace(domain, task, host, seed, plan(value), choice.ask, key, said[value], at, max_steps)
+    options = list(said)
+    i = options.index(value)
+    for other in options[i + 1:] + options[:i]:  # the next options first: contrasts spread over them all
+        answer = said[other]
+        b = trace(domain, task, host, seed, plan(other), choice.ask, key, answer, at, max_steps)
+        i = _diverge(a, b)
+        if i is not None:
+            return Pair(task.id, key, choice.ask, seed, i,
+                        _side(builder, "said", value, said[value], value, a[i]),
+                        _side(builder, "said", other, answer, other, b[i]))
+    return None
+
+
 def spread(pairs: list, limit: int | None) -> list:
     """At most `limit` pairs taken evenly across the list (every task, choice and persona keeps its share);
     all of them when `limit` is None or 0."""

@@ -20,6 +20,10 @@ import json
 from pathlib import Path
 
 KIND = "answer"  # the `kind` of a row in a data file (episode records have `steps` instead)
+# What of a row's prompt is trained on: "full", the planner prompt the student acts on; "dialogue", the
+# messages from the user turn before the question onward (task, question, reply and what followed; no system
+# message, no layout): ~3x fewer tokens, the same distance from the reply to the action (bench/answer_context.py)
+CONTEXTS = ("full", "dialogue")
 
 
 def answer_rows(domain, personas, seeds, places=("recipe", "start"), tasks=None) -> list:
@@ -33,9 +37,22 @@ def answer_rows(domain, personas, seeds, places=("recipe", "start"), tasks=None)
         for pair in build_pairs(domain, tasks=tasks, personas=sorted(keep), seeds=tuple(seeds), at=at):
             if pair.a.persona not in keep or pair.b.persona not in keep:
                 continue
-            rows += [{"kind": KIND, "key": pair.key(), "at": at, "messages": list(side.prompt.messages),
-                      "prefix": side.prompt.prefix, "action": side.action} for side in (pair.a, pair.b)]
+            rows += _rows(pair, at)
     return rows
+
+
+def said_rows(domain, seeds, places=("recipe", "start"), tasks=None) -> list:
+    """Both sides of every templated-reply pair (`llm.probe.said_pairs`: every option of every asked choice
+    named in a plain reply, no persona's words) in the scenes of `seeds`, for each placement."""
+    from ..llm.probe import said_pairs
+
+    return [row for at in places for pair in said_pairs(domain, tasks=tasks, seeds=tuple(seeds), at=at)
+            for row in _rows(pair, at)]
+
+
+def _rows(pair, at: str) -> list:
+    return [{"kind": KIND, "key": pair.key(), "at": at, "messages": list(side.prompt.messages),
+             "prefix": side.prompt.prefix, "action": side.action} for side in (pair.a, pair.b)]
 
 
 def write_rows(path, rows: list) -> None:
@@ -53,15 +70,27 @@ def read_rows(paths) -> list:
     return [r for r in json_objects(paths) if r.get("kind") == KIND]
 
 
-def answer_examples(rows: list, tokenizer) -> list:
-    """Training sequences `(ids, labels)`: each row's rendered prompt with no loss, then its action and EOS."""
+def dialogue(messages: list) -> list:
+    """A row's messages cut to its dialogue: from the user turn before the first question onward, without
+    the system message (the last three messages when nothing was asked)."""
+    asks = [i for i, m in enumerate(messages) if m["role"] == "assistant" and m["content"].startswith("Action: Ask")]
+    start = max(asks[0] - 1, 0) if asks else max(len(messages) - 3, 0)
+    return [m for m in messages[start:] if m["role"] != "system"]
+
+
+def answer_examples(rows: list, tokenizer, context: str = "full") -> list:
+    """Training sequences `(ids, labels)`: each row's rendered prompt (all of it, or with `context`
+    "dialogue" its `dialogue`) with no loss, then its action and EOS."""
     from ..llm.chat import render
     from ..llm.prompts import Prompt
     from .pretrain import IGNORE
 
+    if context not in CONTEXTS:
+        raise ValueError(f"unknown row context '{context}' (choose from: {', '.join(CONTEXTS)})")
     out = []
     for r in rows:
-        prompt = Prompt(tuple(r["messages"]), r.get("prefix", ""))
+        messages = r["messages"] if context == "full" else dialogue(list(r["messages"]))
+        prompt = Prompt(tuple(messages), r.get("prefix", ""))
         p = tokenizer(render(tokenizer, prompt), add_special_tokens=False)["input_ids"]
         t = tokenizer(r["action"], add_special_tokens=False)["input_ids"] + [tokenizer.eos_token_id]
         out.append((p + t, [IGNORE] * len(p) + t))

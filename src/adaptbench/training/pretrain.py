@@ -139,19 +139,20 @@ def completion_dataset(data):
 
 
 def sft_config(out, steps: int, lr: float, seed: int = 0, batch: int = 1, warmup: int = 50, log_every: int = 10,
-               device: str = "cpu", save_every: int | None = None, **extra):
+               device: str = "cpu", save_every: int | None = None, accumulate: int = 1, **extra):
     """`SFTConfig` for training on already tokenized sequences with completion-only loss: no truncation,
     no reports, no gradient checkpointing; float32 on a CPU (TRL defaults to bf16 and gradient
     checkpointing, both slow there); AdamW without weight decay, warm-up then linear decay. No checkpoints,
     or with `save_every` the trainer's full checkpoints in `out` every that many updates and after the
-    last, the two newest kept."""
+    last, the two newest kept. `accumulate`: sequences whose gradients make one update (one at a time: no
+    padding)."""
     from trl import SFTConfig
 
     cpu = device == "cpu"
     save = ({"save_strategy": "steps", "save_steps": save_every, "save_total_limit": 2} if save_every
             else {"save_strategy": "no"})
     return SFTConfig(output_dir=str(out), max_steps=steps, learning_rate=lr, seed=seed, data_seed=seed,
-                     per_device_train_batch_size=batch, gradient_accumulation_steps=1, max_length=None,
+                     per_device_train_batch_size=batch, gradient_accumulation_steps=accumulate, max_length=None,
                      completion_only_loss=True, lr_scheduler_type="linear", warmup_steps=min(warmup, steps),
                      weight_decay=0.0, max_grad_norm=1.0, activation_checkpointing=False, bf16=False, fp16=False,
                      use_cpu=cpu, report_to="none", logging_steps=log_every, disable_tqdm=True,
@@ -195,12 +196,16 @@ def file_sha256(path) -> str:
     return h.hexdigest()
 
 
-def run_settings(model_dir, data_paths, steps: int, lr: float, budget, seed: int) -> dict:
+def run_settings(model_dir, data_paths, steps: int, lr: float, budget, seed: int, accumulate: int = 1,
+                 rows_context: str = "full") -> dict:
     """What makes two pretraining runs the same run: the starting model (its weights' hash), the data
-    (each file's hash), updates, learning rate, token budget and seed."""
+    (each file's hash), updates, learning rate, token budget and seed, and (when not their defaults, so that
+    older runs still resume) the sequences an update and the answer rows' context."""
     weights = sorted(Path(model_dir).glob("*.safetensors"))
+    extra = {**({"accumulate": accumulate} if accumulate != 1 else {}),
+             **({"rows_context": rows_context} if rows_context != "full" else {})}
     return {"model": [file_sha256(w) for w in weights], "data": [file_sha256(p) for p in data_paths], "steps": steps,
-            "lr": lr, "budget": budget, "seed": seed}
+            "lr": lr, "budget": budget, "seed": seed, **extra}
 
 
 def last_checkpoint(folder) -> tuple:
@@ -295,7 +300,8 @@ def _checkpoint_callback(every: int, steps: int, on_checkpoint):
 
 def pretrain(domain, model_dir, data_paths, out, steps: int = 2000, lr: float = 3e-3, budget: int | None = None,
              seed: int = 0, threads: int = 1, log=print, every: int | None = None, on_checkpoint=None,
-             checkpoints=None, save_every: int | None = None, device: str = "cpu") -> PretrainResult:
+             checkpoints=None, save_every: int | None = None, device: str = "cpu", accumulate: int = 1,
+             rows_context: str = "full") -> PretrainResult:
     """Fine-tune the model in `model_dir` on the records in `data_paths` with TRL's `SFTTrainer`
     (completion-only loss on the actions); save the model and tokenizer to `out`. With `every` and
     `on_checkpoint`, `on_checkpoint(update, model, loss)` runs every `every` updates and after the last
@@ -304,7 +310,9 @@ def pretrain(domain, model_dir, data_paths, out, steps: int = 2000, lr: float = 
     200) and a rerun with the same settings resumes from the newest complete checkpoint, or returns the
     finished run's result without training (see the module docstring); ValueError when the directory
     holds another run's checkpoints. `device`: where the trainer trains (cpu, or cuda: the trainer's
-    own device choice, float32 weights either way); a run may resume on another device."""
+    own device choice, float32 weights either way); a run may resume on another device. `accumulate`:
+    sequences an update (gradients summed one at a time); `rows_context`: what of an answer row's prompt is
+    trained on (`answer_rows.CONTEXTS`)."""
     import time
 
     import torch
@@ -315,7 +323,7 @@ def pretrain(domain, model_dir, data_paths, out, steps: int = 2000, lr: float = 
     run = None
     if checkpoints is not None:
         checkpoints = Path(checkpoints)
-        run = _open_run(checkpoints, run_settings(model_dir, data_paths, steps, lr, budget, seed))
+        run = _open_run(checkpoints, run_settings(model_dir, data_paths, steps, lr, budget, seed, accumulate, rows_context))
         if "result" in run and (out / "config.json").is_file():
             log(f"already trained: {steps} updates (checkpoints in {checkpoints}); nothing to do")
             return PretrainResult(**run["result"])
@@ -324,7 +332,7 @@ def pretrain(domain, model_dir, data_paths, out, steps: int = 2000, lr: float = 
     records = read_records(data_paths)
     data, skipped = examples(domain, records, tok, budget)
     answers = read_rows(data_paths)  # answer-following rows (`answer_rows`), beside the episodes
-    data += answer_examples(answers, tok)
+    data += answer_examples(answers, tok, rows_context)
     if not data:
         raise ValueError(f"no training examples in {', '.join(map(str, data_paths))} "
                          f"({len(records)} records, {skipped} not reproducible with this spec)")
@@ -338,12 +346,16 @@ def pretrain(domain, model_dir, data_paths, out, steps: int = 2000, lr: float = 
     if start is not None:
         log(f"resuming from update {resumed} of {steps} ({start})")
     with _trainer_dir(checkpoints) as folder:
-        args = sft_config(folder, steps, lr, seed, log_every=1, device=device,
+        args = sft_config(folder, steps, lr, seed, log_every=1, device=device, accumulate=accumulate,
                           save_every=(save_every or every or 200) if checkpoints is not None else None)
         trainer = SFTTrainer(model=model, args=args, train_dataset=completion_dataset(data), processing_class=tok,
                              callbacks=[_log_callback(log, steps)]
                              + ([_checkpoint_callback(every, steps, on_checkpoint)] if every and on_checkpoint else []))
         trainer.remove_callback(PrinterCallback)  # our callback logs instead (to `log`, not stdout)
+        # each sequence weighs the same in an accumulated update, as in a one-sequence update (not each target
+        # token: TRL's default there, under which an answer row's one action would weigh 1/30 of an episode)
+        if accumulate > 1:
+            trainer.model_accepts_loss_kwargs = False
         t0 = time.perf_counter()
         trainer.train(resume_from_checkpoint=str(start) if start is not None else None)
         seconds = time.perf_counter() - t0

@@ -37,11 +37,14 @@ class StudentSettings:
     ask_seeds: tuple = tuple(range(100, 104))  # scene seeds of the oracle-ask episodes (never 0-3)
     oracle_seeds: tuple = tuple(range(104, 106))  # scene seeds of the plain oracle episodes
     pair_seeds: tuple = ()  # scene seeds of answer-following rows (`answer_rows`; none by default)
+    said_seeds: tuple = ()  # scene seeds of templated-reply rows (`said_rows`: every option named; none by default)
+    rows_context: str = "full"  # what of an answer row's prompt is trained on (`answer_rows.CONTEXTS`)
+    accumulate: int = 1  # sequences an update (each weighs the same)
     hidden: int = 128
     layers: int = 4
     vocab: int = 4096
     words: str = "joined"  # how the new tokenizer splits text (`llm.tiny.WORD_SPLITS`); unused with `init`
-    steps: int = 800  # updates, one packed episode each
+    steps: int = 800  # updates, `accumulate` sequences (packed episodes or answer rows) each
     lr: float = 2e-3
     seed: int = 0  # model initialisation and data order
     workers: int = 2  # rollout processes
@@ -65,18 +68,24 @@ def training_personas(domain, split: str) -> tuple:
 
 def teacher_data(domain, s: StudentSettings, out: Path, progress: bool = True) -> list:
     """Roll out the teachers into OUT/data/<agent>.jsonl (episodes already there are kept) and, with
-    `pair_seeds`, write the answer rows to OUT/data/answer-rows.jsonl (kept when there); the files."""
+    `pair_seeds`, write the answer rows to OUT/data/answer-rows.jsonl, with `said_seeds` the templated-reply
+    rows to OUT/data/said-rows.jsonl (each kept when there); the files."""
     from ..harness.rollout import Job, rollout
 
     personas, tasks = training_personas(domain, s.split), s.tasks or tuple(domain.task)
     files = []
-    if s.pair_seeds:
-        from .answer_rows import answer_rows, write_rows
+    from .answer_rows import answer_rows, said_rows, write_rows
 
-        path = out / "data" / "answer-rows.jsonl"
+    for seeds, name, build in ((s.pair_seeds, "answer-rows", lambda: answer_rows(domain, personas, s.pair_seeds,
+                                                                                 tasks=list(s.tasks) or None)),
+                               (s.said_seeds, "said-rows", lambda: said_rows(domain, s.said_seeds,
+                                                                             tasks=list(s.tasks) or None))):
+        if not seeds:
+            continue
+        path = out / "data" / f"{name}.jsonl"
         path.parent.mkdir(parents=True, exist_ok=True)
         if not path.is_file():
-            write_rows(path, answer_rows(domain, personas, s.pair_seeds, tasks=list(s.tasks) or None))
+            write_rows(path, build())
         files.append(path)
     for agent, seeds in s.agents():
         path = out / "data" / f"{agent}.jsonl"
@@ -100,9 +109,9 @@ def build_student(domain, out, s: StudentSettings = StudentSettings(), log=print
     base = Path(s.init) if s.init else init_tiny(domain, out / "init", seed=s.seed, vocab_size=s.vocab,
                                                   hidden=s.hidden, layers=s.layers, words=s.words)
     r = pretrain(domain, base, files, out, steps=s.steps, lr=s.lr, seed=s.seed, log=log, checkpoints=out / "trainer",
-                 save_every=s.save_every, device=s.device)
+                 save_every=s.save_every, device=s.device, accumulate=s.accumulate, rows_context=s.rows_context)
     before = _init_info(s.init)
-    seeds = {*s.ask_seeds, *s.oracle_seeds, *s.pair_seeds, *before.get("scene_seeds", ())}
+    seeds = {*s.ask_seeds, *s.oracle_seeds, *s.pair_seeds, *s.said_seeds, *before.get("scene_seeds", ())}
     info = {"settings": asdict(s), "split": s.split, "teachers": [a for a, _ in s.agents()], "scene_seeds": sorted(seeds),
             **({"init": before} if s.init else {}), "spec_hash": domain.spec_hash,
             "data": [str(f.relative_to(out)) for f in files],
