@@ -12,8 +12,9 @@
 #     DRY=1 bash bench/gpu_student.sh /tmp/dry   # the same commands at a few seconds' scale, on the CPU
 #
 # Settings by environment: HIDDEN, LAYERS, STEPS, LR, ORACLE (scene seeds), PAIRS (answer-row scene seeds),
-# WORDS (the tokenizer's word split, joined or spaced: `adapt model student --words`), WORKERS, LIMIT
-# (seconds for the training command; a killed run resumes from its last checkpoint).
+# WORDS (the tokenizer's word split, joined or spaced: `adapt model student --words`), ACCUMULATE (sequences an
+# update, default 1) and ROWS_CONTEXT (full or dialogue: what of an answer row's prompt is trained on), WORKERS,
+# LIMIT (seconds for the training command; a killed run resumes from its last checkpoint).
 set -u
 out=${1:-${OUT:-gpu-student}}
 mkdir -p "$out"
@@ -38,7 +39,7 @@ fi
 { nvidia-smi --query-gpu=name,memory.total --format=csv,noheader 2>/dev/null || echo "no GPU"; nproc; } | tee "$out/machine.txt"
 start=$(date +%s)
 timeout "${LIMIT:-480}" python3 -m adaptbench.cli model student --out "$out/build" "${settings[@]}" --hidden "$hidden" \
-  --layers "$layers" --words "${WORDS:-joined}" --steps "$steps" --lr "${LR:-1e-3}" --device "$dev" --workers "$workers" --save-every 500 \
+  --layers "$layers" --words "${WORDS:-joined}" --accumulate "${ACCUMULATE:-1}" --rows-context "${ROWS_CONTEXT:-full}" --steps "$steps" --lr "${LR:-1e-3}" --device "$dev" --workers "$workers" --save-every 500 \
   --quiet 2>&1 | tail -5 | tee "$out/train.txt"
 echo "student: $(( $(date +%s) - start )) s (whole process)" | tee -a "$out/train.txt"
 mkdir -p "$out/student"
