@@ -168,20 +168,21 @@ def test_student_rdpo_rolls_out_and_eval_labels_it(tmp_path, capsys):
     assert "reflection-dpo  reflection-dpo  1" in table  # the method and split from its training.json: unseen
 
 
+@SKIP_MODELS
 def test_cli_builds_a_student_on_templated_replies_in_their_dialogue_several_sequences_an_update(tmp_path, capsys):
     """`--said-seeds` (templated-reply rows), `--rows-context dialogue` and `--accumulate`: the rows are
     written beside the episodes, and the run's settings (what resuming checks) record both choices."""
     from adaptbench.cli import main
 
     out = tmp_path / "st"
-    argv = ["model", "student", "--out", str(out), "--tasks", "cereal", "--ask-seeds", "none", "--oracle-seeds", "101",
+    argv = ["model", "student", "--out", str(out), "--tasks", "cereal", "--ask-seeds", "none", "--oracle-seeds", "none",
             "--said-seeds", "100", "--rows-context", "dialogue", "--accumulate", "3", "--steps", "2", "--hidden", "32",
             "--layers", "1", "--workers", "1", "--quiet"]
     assert main(argv) == 0
     info = json.loads((out / "student.json").read_text())
-    assert info["settings"]["said_seeds"] == [100] and info["scene_seeds"] == [100, 101]
+    assert info["settings"]["said_seeds"] == [100] and info["scene_seeds"] == [100]
     rows = (out / "data" / "said-rows.jsonl").read_text().splitlines()
-    assert info["pretrain"]["sequences"] == 12 + len(rows) and info["pretrain"]["steps"] == 2
+    assert rows and info["pretrain"]["sequences"] == len(rows) and info["pretrain"]["steps"] == 2
     run = json.loads((out / "trainer" / "pretrain.json").read_text())["settings"]
     assert run["accumulate"] == 3 and run["rows_context"] == "dialogue"
     capsys.readouterr()
