@@ -273,9 +273,9 @@ def said_pairs(domain, tasks=None, seeds=(100,), at: str = "recipe", persona=Non
     """Pairs like `build_pairs`', with templated replies in place of personas' preferences: for every asked
     choice point of each task and every option of it but "none", a reply naming that option (`said_answer`,
     the saying chosen by the scene seed) against the next option (in the choice's order, wrapping round)
-    whose plan acts differently. They
-    cover every option, where personas' answers cover those some persona prefers, and use no persona's
-    words (`persona`, default the first, only hosts the episode). Sides are labelled persona "said"."""
+    whose plan acts differently. They cover every option, where personas' answers cover those some persona
+    prefers, and use no persona's words (`persona`, default the first, only hosts the episode). Sides are
+    labelled persona "said"."""
     if at not in PLACES:
         raise ValueError(f"unknown place '{at}' (choose from: {', '.join(PLACES)})")
     tasks = [domain.task[t] for t in tasks] if tasks else list(domain.tasks)
@@ -299,20 +299,21 @@ def said_pairs(domain, tasks=None, seeds=(100,), at: str = "recipe", persona=Non
 
 
 def _said_pair(domain, task, host, key, choice, base, said, value, seed, at, max_steps, builder):
-    """The pair of one option's templated reply against the first other option that acts differently."""
+    """The pair of one option's templated reply against the next option whose plan acts differently (None if
+    none does within the step limit)."""
     def plan(v):
         return {**base, key: (v,) if choice.multi else v}
     a = trace(domain, task, host, seed, plan(value), choice.ask, key, said[value], at, max_steps)
     options = list(said)
-    i = options.index(value)
-    for other in options[i + 1:] + options[:i]:  # the next options first: contrasts spread over them all
+    k = options.index(value)
+    for other in options[k + 1:] + options[:k]:  # the next options first: contrasts spread over them all
         answer = said[other]
         b = trace(domain, task, host, seed, plan(other), choice.ask, key, answer, at, max_steps)
-        i = _diverge(a, b)
-        if i is not None:
-            return Pair(task.id, key, choice.ask, seed, i,
-                        _side(builder, "said", value, said[value], value, a[i]),
-                        _side(builder, "said", other, answer, other, b[i]))
+        step = _diverge(a, b)
+        if step is not None:
+            return Pair(task.id, key, choice.ask, seed, step,
+                        _side(builder, "said", value, said[value], value, a[step]),
+                        _side(builder, "said", other, answer, other, b[step]))
     return None
 
 
