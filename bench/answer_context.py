@@ -25,63 +25,44 @@ from pathlib import Path
 SPLIT0_UNSEEN = ("leila", "lisa", "mark", "samantha")
 
 
-def dialogue(messages: list) -> list:
-    """The prompt cut to its dialogue (`training.answer_rows.dialogue`, `--rows-context dialogue`)."""
-    from adaptbench.training.answer_rows import dialogue as cut
+def row_loss(model, example: tuple):
+    """Mean cross-entropy over the labelled (action and EOS) tokens of one `answer_examples` sequence."""
+    import torch
 
-    return cut(messages)
+    ids, labels = example
+    return model(input_ids=torch.tensor([ids]), labels=torch.tensor([labels])).loss
 
 
-def encode_row(tokenizer, messages: list, prefix: str, action: str) -> tuple:
-    """(prompt ids, action ids + EOS) of one row, rendered through the model's chat template."""
+def model_scorer(model, tokenizer, cut: bool):
+    """A probe scorer (`llm.probe.Scorer`) over an in-process model: each action's summed log-probability (its
+    tokens and EOS) after the rendered prompt, the prompt cut to its dialogue when `cut`."""
+    import torch
+
     from adaptbench.llm.chat import render
     from adaptbench.llm.prompts import Prompt
+    from adaptbench.training.answer_rows import dialogue
 
-    text = render(tokenizer, Prompt(tuple(messages), prefix))
-    p = tokenizer(text, add_special_tokens=False)["input_ids"]
-    return p, tokenizer(action, add_special_tokens=False)["input_ids"] + [tokenizer.eos_token_id]
-
-
-def row_loss(model, row: tuple):
-    """Mean cross-entropy over the action tokens of one (prompt ids, action ids)."""
-    import torch
-
-    p, a = row
-    ids = torch.tensor([p + a])
-    labels = torch.tensor([[-100] * len(p) + a])
-    return model(input_ids=ids, labels=labels).loss
-
-
-def action_logprob(model, prompt: list, action: list) -> float:
-    """Summed log-probability of `action` (ids, EOS included) after `prompt` (ids)."""
-    import torch
-
-    ids = torch.tensor([prompt + action])
-    with torch.no_grad():
-        logp = model(input_ids=ids).logits[0, len(prompt) - 1:-1].log_softmax(-1)
-    return float(logp[torch.arange(len(action)), torch.tensor(action)].sum())
+    def score(prompt, actions: tuple) -> tuple:
+        if cut:
+            prompt = Prompt(tuple(dialogue(list(prompt.messages))), prompt.prefix)
+        p = tokenizer(render(tokenizer, prompt), add_special_tokens=False)["input_ids"]
+        out = []
+        for action in actions:
+            a = tokenizer(action, add_special_tokens=False)["input_ids"] + [tokenizer.eos_token_id]
+            with torch.no_grad():
+                logp = model(input_ids=torch.tensor([p + a])).logits[0, len(p) - 1:-1].log_softmax(-1)
+            out.append(float(logp[torch.arange(len(a)), torch.tensor(a)].sum()))
+        return tuple(out)
+    return score
 
 
 def probe_share(model, tokenizer, pairs: list, cut: bool) -> dict:
-    """The probe's figures over `pairs`: share of prompts whose own answer's action scores higher, pairs
-    followed both ways, and the mean shift (nats) toward the answered action."""
-    followed, both, shifts = 0, 0, []
-    for pair in pairs:
-        sides = (pair.a, pair.b)
-        acts = [tokenizer(s.action, add_special_tokens=False)["input_ids"] + [tokenizer.eos_token_id] for s in sides]
-        ok = []
-        for i, s in enumerate(sides):
-            msgs = dialogue(list(s.prompt.messages)) if cut else list(s.prompt.messages)
-            p, _ = encode_row(tokenizer, msgs, s.prompt.prefix, s.action)
-            own, other = action_logprob(model, p, acts[i]), action_logprob(model, p, acts[1 - i])
-            ok.append(own > other)
-            shifts.append(own - other)
-        followed += sum(ok)
-        both += all(ok)
-    n = 2 * len(pairs)
-    share = followed / n
-    return {"share": round(share, 4), "se": round((share * (1 - share) / n) ** 0.5, 4),
-            "pairs_both": round(both / len(pairs), 4), "shift": round(sum(shifts) / n, 3)}
+    """The answer-use probe (`llm.probe.probe`) over `pairs`, on whole or cut prompts: its summary."""
+    from adaptbench.llm.probe import probe
+
+    r = probe(model_scorer(model, tokenizer, cut), pairs).summary()
+    return {"share": round(r["share"], 4), "se": round(r["share_se"], 4), "pairs_both": round(r["pair_share"], 4),
+            "shift": round(r["mean_shift"], 3)}
 
 
 def seed_range(text: str) -> range:
@@ -132,6 +113,7 @@ def main(argv=None) -> int:
     from adaptbench.compiler import load_domain
     from adaptbench.llm.named import resolve_model
     from adaptbench.llm.probe import build_pairs, spread
+    from adaptbench.training.answer_rows import answer_examples
     torch.set_num_threads(1)
     torch.manual_seed(0)
     out = Path(args.out)
@@ -142,9 +124,8 @@ def main(argv=None) -> int:
     path = resolve_model(args.model)
     tok = AutoTokenizer.from_pretrained(path)
     model = AutoModelForCausalLM.from_pretrained(path, dtype=torch.float32)
-    data = [encode_row(tok, list(r["messages"]) if args.full else dialogue(list(r["messages"])),
-                       r.get("prefix", ""), r["action"]) for r in rows]
-    mean_len = sum(len(p) + len(a) for p, a in data) / len(data)
+    data = answer_examples(rows, tok, "full" if args.full else "dialogue")
+    mean_len = sum(len(ids) for ids, _ in data) / len(data)
     print(f"{len(rows)} rows, {mean_len:.0f} tokens a row ({'full' if args.full else 'cut'}); "
           f"{len(pairs)} probe pairs", flush=True)
     opt = torch.optim.AdamW(model.parameters(), lr=args.lr, weight_decay=0.0)
