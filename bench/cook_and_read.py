@@ -1,0 +1,144 @@
+"""Can one student both cook and read the user's answer, on the whole planner prompt?
+
+    python bench/cook_and_read.py --out runs/cook-read --model runs/ac-cut/model \\
+        --episodes runs/mix/data/oracle.jsonl --rows runs/ac-cut/rows.jsonl [--steps 400] [--eval-every 100]
+
+The eleventh session found that a student trained on answer rows alone learns to read replies but forgets
+how to cook, and one trained with the oracle's episodes as a tenth of its sequences keeps cooking but sees
+too few rows to read. This experiment gives each update a fixed mix: `--episodes-per-update` of the oracle's
+whole episodes (packed, the loss on every action) and `--rows-per-update` answer rows, all on the whole
+planner prompt. The sequences of an update share their ~1,230-token system message, which
+`training.shared_prefix` runs once (the loss and gradients are those of running each whole; about half the
+compute of an answer row). Every `--eval-every` updates it scores the answer-use probe on the whole prompt
+(split 0's unseen personas, scene seed 0), appends a line to OUT/curve.jsonl and saves the model to
+OUT/model-STEP (for `adapt rollout --model` on the unseen personas, which measures the cooking). Not a
+shipped model: a measurement (docs/training.md).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import random
+import sys
+import time
+from pathlib import Path
+
+from answer_context import SPLIT0_UNSEEN, probe_share  # bench/answer_context.py, beside this file
+
+
+def batches(n_items: int, per_update: int, rng: random.Random):
+    """Endless batches of `per_update` indices into `n_items`, each index once per shuffled pass."""
+    order: list = []
+    while True:
+        if len(order) < per_update:
+            order += rng.sample(range(n_items), n_items)
+        yield order[:per_update]
+        order = order[per_update:]
+
+
+def update_loss(model, episodes: list, rows: list):
+    """The mean of the sequences' mean token losses (each sequence weighs the same). The answer rows run
+    after their shared system message (`training.shared_prefix`: ~1.4x faster for whole-prompt rows); the
+    episodes run whole, since a long remainder attends faster with the causal kernel than after a cache."""
+    import torch
+
+    from adaptbench.training.shared_prefix import shared_prefix_loss
+
+    parts = [model(input_ids=torch.tensor([ids]), labels=torch.tensor([labels])).loss for ids, labels in episodes]
+    if rows:
+        parts += [shared_prefix_loss(model, rows)] * len(rows)
+    return torch.stack(parts).mean()
+
+
+def episode_examples(domain, tok, paths: list) -> list:
+    """The oracle's episodes as packed whole-prompt sequences (`training.pretrain.examples`)."""
+    from adaptbench.training.pretrain import examples, read_records
+
+    data, skipped = examples(domain, read_records(paths), tok, None)
+    if skipped:
+        print(f"{skipped} episodes skipped (not reproducible with this spec)", flush=True)
+    return data
+
+
+def main(argv=None) -> int:
+    """Train on a fixed mix of whole episodes and answer rows; probe and save as it goes."""
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--out", required=True, help="folder for curve.jsonl and the saved models")
+    ap.add_argument("--model", default="student", help="model to start from (a name or a directory)")
+    ap.add_argument("--episodes", required=True, nargs="+", help="oracle episode records (JSONL)")
+    ap.add_argument("--rows", required=True, nargs="+", help="answer rows (JSONL, training/answer_rows.py)")
+    ap.add_argument("--steps", type=int, default=400, help="updates")
+    ap.add_argument("--episodes-per-update", type=int, default=4)
+    ap.add_argument("--rows-per-update", type=int, default=4)
+    ap.add_argument("--rows-context", choices=("full", "dialogue"), default="full",
+                    help="answer rows on the whole prompt (default) or cut to their dialogue (answer_rows.CONTEXTS)")
+    ap.add_argument("--lr", type=float, default=5e-4)
+    ap.add_argument("--eval-every", type=int, default=100)
+    ap.add_argument("--pairs", type=int, default=60, help="probe pairs (unseen personas, scene seed 0), whole prompts")
+    ap.add_argument("--personas", default=",".join(SPLIT0_UNSEEN), help="the probe's personas")
+    ap.add_argument("--seed", type=int, default=0, help="data order")
+    args = ap.parse_args(argv)
+
+    import torch
+    from transformers import AutoModelForCausalLM, AutoTokenizer
+
+    from adaptbench.compiler import load_domain
+    from adaptbench.llm.named import resolve_model
+    from adaptbench.llm.probe import build_pairs, spread
+    from adaptbench.training.answer_rows import answer_examples, read_rows
+    torch.set_num_threads(1)
+    torch.manual_seed(args.seed)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    domain = load_domain()
+    path = resolve_model(args.model)
+    tok = AutoTokenizer.from_pretrained(path)
+    model = AutoModelForCausalLM.from_pretrained(path, dtype=torch.float32)
+    episodes = episode_examples(domain, tok, args.episodes)
+    rows = answer_examples(read_rows(args.rows), tok, args.rows_context)
+    pairs = spread(build_pairs(domain, personas=args.personas.split(","), seeds=(0,)), args.pairs)
+    print(f"{len(episodes)} episodes ({sum(len(i) for i, _ in episodes) / len(episodes):.0f} tokens each), "
+          f"{len(rows)} answer rows ({sum(len(i) for i, _ in rows) / len(rows):.0f} tokens each); "
+          f"{len(pairs)} probe pairs", flush=True)
+    opt = torch.optim.AdamW(model.parameters(), lr=args.lr, weight_decay=0.0)
+    rng = random.Random(args.seed)
+    ep_batches = batches(len(episodes), args.episodes_per_update, rng)
+    row_batches = batches(len(rows), args.rows_per_update, rng)
+    curve = out / "curve.jsonl"
+    done = [json.loads(line)["step"] for line in curve.read_text().splitlines()] if curve.is_file() else []
+    if done:
+        raise SystemExit(f"{curve} exists (steps {done}): choose another --out")
+    t0 = time.perf_counter()
+
+    def evaluate(step: int, loss: float) -> None:
+        model.eval()
+        rec = {"step": step, "loss": round(loss, 4), "seconds": round(time.perf_counter() - t0, 1),
+               "probe_full": probe_share(model, tok, pairs, cut=False)}
+        with curve.open("a") as f:
+            f.write(json.dumps(rec) + "\n")
+        print(json.dumps(rec), flush=True)
+        if step:
+            model.save_pretrained(out / f"model-{step}")
+            tok.save_pretrained(out / f"model-{step}")
+        model.train()
+
+    evaluate(0, float("nan"))
+    losses: list = []
+    for step in range(1, args.steps + 1):
+        batch = [episodes[i] for i in next(ep_batches)] + [rows[i] for i in next(row_batches)]
+        opt.zero_grad()
+        loss = update_loss(model, batch[:args.episodes_per_update], batch[args.episodes_per_update:])
+        loss.backward()
+        torch.nn.utils.clip_grad_norm_(model.parameters(), 1.0)
+        opt.step()
+        losses.append(float(loss.detach()))
+        if step % 10 == 0:
+            print(f"update {step}: loss {sum(losses[-10:]) / 10:.4f} ({time.perf_counter() - t0:.0f} s)", flush=True)
+        if step % args.eval_every == 0 or step == args.steps:
+            evaluate(step, sum(losses[-50:]) / len(losses[-50:]))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

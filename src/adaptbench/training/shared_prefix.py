@@ -1,0 +1,76 @@
+"""One update's loss over several sequences that open with the same tokens, their shared opening run once.
+
+Every planner sequence the student trains on (a packed episode, an answer row) starts with the same
+~1,230-token system message: the instructions, the actions and the house's layout. Trained one sequence at
+a time, each pays for that opening again. `shared_prefix_loss` runs the sequences' common prefix through
+the model once, keeps its keys and values (with their gradients' history), and runs each sequence's
+remainder after them; the loss and its gradients are those of running every sequence whole (checked in
+tests/test_shared_prefix.py), for about half the compute on an answer row (bench/bench_shared_prefix.py).
+
+The loss is each sequence's mean over its labelled tokens, averaged over the sequences: every sequence
+weighs the same, as in `adapt model student --accumulate`.
+"""
+
+from __future__ import annotations
+
+IGNORE = -100  # label of a token the loss skips (as in training.pretrain)
+
+
+def common_prefix(sequences) -> int:
+    """How many leading tokens every `(ids, labels)` sequence shares and that can be run once: the common
+    run of ids, ending before the token whose logits predict the first labelled token of any sequence (so
+    no loss is taken inside the prefix), and leaving every sequence at least one token of its own."""
+    first, *rest = [ids for ids, _ in sequences]
+    n = min(len(ids) for ids in [first, *rest]) - 1
+    for ids in rest:
+        n = next((i for i in range(n) if ids[i] != first[i]), n)
+    for _, labels in sequences:
+        labelled = next((i for i, t in enumerate(labels) if t != IGNORE), len(labels))
+        n = min(n, labelled - 1)
+    return max(n, 0)
+
+
+def _prefix_layers(model, torch, ids: list) -> tuple:
+    """Per-layer (keys, values) of one pass over `ids`, their gradients' history kept."""
+    from transformers import DynamicCache
+
+    from ..llm.decode import cache_arg
+
+    cache = DynamicCache(config=model.config)
+    model(input_ids=torch.tensor([ids], device=model.device), use_cache=True, logits_to_keep=1,
+          **cache_arg(model, cache))
+    return tuple((layer.keys, layer.values) for layer in cache.layers)
+
+
+def _suffix_loss(model, torch, ids, labels, start: int, prefix_layers):
+    """The mean loss over the labelled tokens of `ids[start:]`, run after the prefix's keys and values."""
+    from transformers import DynamicCache
+
+    from ..llm.decode import cache_arg
+
+    dev = model.device
+    cache = DynamicCache(config=model.config)
+    for layer, (keys, values) in enumerate(prefix_layers):  # a fresh cache a sequence: each appends its own
+        cache.update(keys, values, layer)
+    logits = model(input_ids=torch.tensor([ids[start:]], device=dev),
+                   position_ids=torch.arange(start, len(ids), device=dev).unsqueeze(0),
+                   use_cache=bool(start), **cache_arg(model, cache if start else None)).logits
+    targets = torch.tensor(labels[start + 1:], device=dev)
+    return torch.nn.functional.cross_entropy(logits[0, :-1].float(), targets, ignore_index=IGNORE)
+
+
+def shared_prefix_loss(model, sequences, min_shared: int = 32):
+    """The mean over `sequences` (`(ids, labels)` pairs) of each one's mean token loss, with their common
+    prefix (`common_prefix`) run through `model` once when it is at least `min_shared` tokens; gradients
+    flow through the prefix's keys and values. Each sequence runs on its own after it (no padding). A
+    sequence without a labelled token is refused."""
+    import torch
+
+    for ids, labels in sequences:
+        if len(ids) != len(labels) or all(t == IGNORE for t in labels[1:]):
+            raise ValueError("a sequence has no labelled token after its first (or its labels do not match its ids)")
+    start = common_prefix(sequences)
+    start = start if start >= min_shared else 0
+    layers = _prefix_layers(model, torch, sequences[0][0][:start]) if start else ()
+    losses = [_suffix_loss(model, torch, ids, labels, start, layers) for ids, labels in sequences]
+    return torch.stack(losses).mean()
