@@ -1,0 +1,45 @@
+"""A model between two of the same shape: every weight (1 - t) * A + t * B.
+
+    python bench/interpolate.py --a student --b runs/cook-read/model-200 --t 0.7 --out runs/interp-0.7
+
+Used in the twelfth session (docs/training.md) to keep part of what a fine-tuned student learned (B: reading
+the user's answer) while pulling its weights back toward the student it came from (A: cooking). The
+tokenizer and config are B's. Not a shipped model: a measurement.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+
+def main(argv=None) -> int:
+    """Write the interpolated model and its tokenizer to --out."""
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--a", required=True, help="a model name or directory (weight 1 - t)")
+    ap.add_argument("--b", required=True, help="a model directory of the same shape (weight t)")
+    ap.add_argument("--t", type=float, required=True, help="B's weight, 0 to 1")
+    ap.add_argument("--out", required=True)
+    args = ap.parse_args(argv)
+    if not 0.0 <= args.t <= 1.0:
+        ap.error(f"--t {args.t}: give a weight from 0 to 1")
+
+    import torch
+    from transformers import AutoModelForCausalLM, AutoTokenizer
+
+    from adaptbench.llm.named import resolve_model
+
+    a = AutoModelForCausalLM.from_pretrained(resolve_model(args.a), dtype=torch.float32).state_dict()
+    model = AutoModelForCausalLM.from_pretrained(args.b, dtype=torch.float32)
+    b = model.state_dict()
+    if a.keys() != b.keys() or any(a[k].shape != b[k].shape for k in b):
+        ap.error(f"{args.a} and {args.b} differ in shape: they cannot be interpolated")
+    model.load_state_dict({k: (1 - args.t) * a[k] + args.t * b[k] for k in b})
+    model.save_pretrained(args.out)
+    AutoTokenizer.from_pretrained(args.b).save_pretrained(args.out)
+    print(f"{args.out}: {1 - args.t:g} x {args.a} + {args.t:g} x {args.b}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
