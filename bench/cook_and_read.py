@@ -78,6 +78,7 @@ def main(argv=None) -> int:
     ap.add_argument("--pairs", type=int, default=60, help="probe pairs (unseen personas, scene seed 0), whole prompts")
     ap.add_argument("--personas", default=",".join(SPLIT0_UNSEEN), help="the probe's personas")
     ap.add_argument("--seed", type=int, default=0, help="data order")
+    ap.add_argument("--threads", type=int, default=1, help="torch threads (default 1: the run beside another job)")
     args = ap.parse_args(argv)
 
     import torch
@@ -87,7 +88,7 @@ def main(argv=None) -> int:
     from adaptbench.llm.named import resolve_model
     from adaptbench.llm.probe import build_pairs, spread
     from adaptbench.training.answer_rows import answer_examples, read_rows
-    torch.set_num_threads(1)
+    torch.set_num_threads(args.threads)
     torch.manual_seed(args.seed)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
