@@ -12,11 +12,13 @@
 # 3. read:    each update 4 of those episodes and 4 answer rows on the whole prompt (bench/cook_and_read.py,
 #             200 updates, lr 5e-4): reads on the prompt it acts on, cooks a little.
 # 4. base:    every weight 0.3 x the shipped student + 0.7 x step 3's model (bench/interpolate.py).
-# 5. probe:   the base's answer-use probe (unseen personas, 200 pairs, float32).
-# 6. pairs:   Reflection-DPO's rows from the base (training personas, scene seed 100, --questions choices).
-# 7. dpo:     60 updates, sigmoid+sft, lr 3e-4, LoRA rank 8 on every linear layer.
-# 8. evals:   the base and the DPO model as the planner on split 0's unseen personas x 8 tasks x scene seeds
+# 5. pairs:   Reflection-DPO's rows from the base (training personas, scene seed 100, --questions choices).
+# 6. dpo:     60 updates, sigmoid+sft, lr 3e-4, LoRA rank 8 on every linear layer.
+# 7. evals:   the base and the DPO model as the planner on split 0's unseen personas x 8 tasks x scene seeds
 #             0-7 (256 episodes, 50 steps, greedy), then `adapt eval --paired base` (clustered by scene).
+# 8. probe:   the base's answer-use probe (unseen personas, 200 pairs, float32: OUT/base-probe.json).
+# The base's evaluation and probe may run beside steps 5-6 by hand (the same commands); their step skips or
+# resumes them.
 # ABLATIONS=1 adds no-DPO (`adapt train sft`) and no-reflection on the same pairs, evaluated the same way.
 # Settings by environment: CUT_STEPS, READ_STEPS, T, DPO_STEPS, EVAL_SEEDS, WORKERS, THREADS (training).
 set -u
@@ -47,9 +49,6 @@ step read
   --lr 5e-4 --threads "${THREADS:-1}" "${read[@]}"; }
 step base
 [ -d "$dir/base" ] || run python3 bench/interpolate.py --a student --b "$dir/read/model-$read_steps" --t "${T:-0.7}" --out "$dir/base"
-step probe
-[ -s "$dir/base-probe.json" ] || run adapt probe answers --model "$dir/base" --personas "$unseen" "${probe[@]}" \
-  --dtype float32 --quiet --json > "$dir/base-probe.json"
 step pairs
 run adapt train data --student "$dir/base" --split 0 --seeds 100 "${pairs[@]}" --max-steps 50 --batch 16 \
   --questions choices --workers "${WORKERS:-2}" --out "$dir/pairs"
@@ -72,3 +71,6 @@ for m in "${methods[@]}"; do
 done
 step table
 adapt eval "${spec[@]}" --paired base | tee "$dir/table.txt"
+step probe
+[ -s "$dir/base-probe.json" ] || run adapt probe answers --model "$dir/base" --personas "$unseen" "${probe[@]}" \
+  --dtype float32 --quiet --json > "$dir/base-probe.json"

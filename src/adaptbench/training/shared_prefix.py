@@ -5,7 +5,9 @@ Every planner sequence the student trains on (a packed episode, an answer row) s
 a time, each pays for that opening again. `shared_prefix_loss` runs the sequences' common prefix through
 the model once, keeps its keys and values (with their gradients' history), and runs each sequence's
 remainder after them; the loss and its gradients are those of running every sequence whole (checked in
-tests/test_shared_prefix.py), for about half the compute on an answer row (bench/bench_shared_prefix.py).
+tests/llm/test_shared_prefix.py). It saves less than the tokens suggest: 8 whole-prompt answer rows (half
+their tokens shared) took 1.1-1.2x less time than one by one on a quiet core, and four episodes none
+(bench/bench_shared_prefix.py; the remainder's attention after a cache takes an explicit mask).
 
 The loss is each sequence's mean over its labelled tokens, averaged over the sequences: every sequence
 weighs the same, as in `adapt model student --accumulate`.
