@@ -131,7 +131,8 @@ def test_a_text_is_scored_as_a_complete_answer_with_its_end_token(domain, sharp)
     assert stop < 0 and sum(text.logprobs) == pytest.approx(sum(plain.logprobs) + stop)
     (long_,) = b.score(prompt, [longer])  # the same tokens, then more: the short answer stops where this goes on
     assert long_.token_ids[:len(ids)] == tuple(ids) and long_.token_ids[len(ids)] != end
-    assert long_.logprobs[:len(ids)] == pytest.approx(text.logprobs[:-1], abs=1e-6)
+    # scored alone against in a batch of three: float32 sums in another order differ by ~1e-6 at |x| ~ 10
+    assert long_.logprobs[:len(ids)] == pytest.approx(text.logprobs[:-1], abs=1e-5)
     assert text.mean_prob == pytest.approx(sum(math.exp(x) for x in text.logprobs) / (len(ids) + 1))
 
 
