@@ -8,7 +8,8 @@
 #
 # 1. rows:    the shipped student trained on split 0's answer rows alone, cut to their dialogue
 #             (bench/answer_context.py: 1,500 updates x 8 rows, lr 1e-3): reads replies, cooks nothing.
-# 2. oracle:  the oracle's episodes on split 0's twelve training personas, scene seeds 124-129 (576).
+# 2. oracle:  the oracle's episodes on split 0's twelve training personas, scene seeds 124-129 (576);
+#             AGENT=oracle-ask: the oracle that asks at the recipes' choices instead (a base that asks).
 # 3. read:    each update 4 of those episodes and 4 answer rows on the whole prompt (bench/cook_and_read.py,
 #             200 updates, lr 5e-4): reads on the prompt it acts on, cooks a little.
 # 4. base:    every weight 0.3 x the shipped student + 0.7 x step 3's model (bench/interpolate.py).
@@ -20,7 +21,7 @@
 # The base's evaluation and probe may run beside steps 5-6 by hand (the same commands); their step skips or
 # resumes them.
 # ABLATIONS=1 adds no-DPO (`adapt train sft`) and no-reflection on the same pairs, evaluated the same way.
-# Settings by environment: CUT_STEPS, READ_STEPS, T, DPO_STEPS, EVAL_SEEDS, WORKERS, THREADS (training).
+# Settings by environment: AGENT, CUT_STEPS, READ_STEPS, T, DPO_STEPS, EVAL_SEEDS, WORKERS, THREADS (training).
 set -u
 dir=${1:-runs/read-rdpo}
 mkdir -p "$dir/evals"
@@ -41,11 +42,12 @@ run() { "$@" || { echo "failed: $*" >&2; exit 1; }; }
 
 step rows
 [ -d "$dir/rows/model" ] || run python3 bench/answer_context.py --out "$dir/rows" "${cut[@]}"
-step oracle   # adapt rollout resumes a partly written file
-run adapt rollout --agent oracle "${oracle[@]}" --quiet --out "$dir/oracle.jsonl"
+agent=${AGENT:-oracle}
+step "$agent"   # adapt rollout resumes a partly written file
+run adapt rollout --agent "$agent" "${oracle[@]}" --quiet --out "$dir/$agent.jsonl"
 step read
 [ -d "$dir/read/model-$read_steps" ] || { rm -rf "$dir/read"; run python3 bench/cook_and_read.py --out "$dir/read" \
-  --model "$dir/rows/model" --episodes "$dir/oracle.jsonl" --rows "$dir/rows/rows.jsonl" --steps "$read_steps" \
+  --model "$dir/rows/model" --episodes "$dir/$agent.jsonl" --rows "$dir/rows/rows.jsonl" --steps "$read_steps" \
   --lr 5e-4 --threads "${THREADS:-1}" "${read[@]}"; }
 step base
 [ -d "$dir/base" ] || run python3 bench/interpolate.py --a student --b "$dir/read/model-$read_steps" --t "${T:-0.7}" --out "$dir/base"
