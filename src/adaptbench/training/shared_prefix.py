@@ -6,7 +6,7 @@ a time, each pays for that opening again. `shared_prefix_loss` runs the sequence
 the model once, keeps its keys and values (with their gradients' history), and runs each sequence's
 remainder after them; the loss and its gradients are those of running every sequence whole (checked in
 tests/llm/test_shared_prefix.py). It saves less than the tokens suggest: 8 whole-prompt answer rows (half
-their tokens shared) took 1.1-1.2x less time than one by one on a quiet core, and four episodes none
+their tokens shared) ran 1.1-1.2x faster than one by one on a quiet core, and four episodes no faster
 (bench/bench_shared_prefix.py; the remainder's attention after a cache takes an explicit mask).
 
 The loss is each sequence's mean over its labelled tokens, averaged over the sequences: every sequence
