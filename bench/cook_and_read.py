@@ -10,9 +10,9 @@ whole episodes (packed, the loss on every action) and `--rows-per-update` answer
 planner prompt. The sequences of an update share their ~1,230-token system message, which
 `training.shared_prefix` runs once (the loss and gradients are those of running each whole; 1.1-1.2x
 faster for eight rows on a quiet core: bench/bench_shared_prefix.py). Every `--eval-every` updates it scores
-the answer-use probe on the whole prompt (split 0's unseen personas, scene seed 0), appends a line to OUT/curve.jsonl and saves the model to
-OUT/model-STEP (for `adapt rollout --model` on the unseen personas, which measures the cooking). Not a
-shipped model: a measurement (docs/training.md).
+the answer-use probe on the whole prompt (split 0's unseen personas, scene seed 0), appends a line to
+OUT/curve.jsonl and saves the model to OUT/model-STEP (for `adapt rollout --model` on the unseen personas,
+which measures the cooking). Not a shipped model: a measurement (docs/training.md).
 """
 
 from __future__ import annotations
