@@ -14,31 +14,27 @@ or does not ask (docs/training.md), not a shipped tool.
 from __future__ import annotations
 
 import argparse
-import ast
 import json
 import statistics
 import sys
 
 
-def pair_logprobs(model, enc, messages: list, chosen: list, rejected: list) -> tuple:
-    """(chosen, rejected, branch): the summed log-probabilities of the two completions' ids after the
-    prompt's, as DPO trains on them (`training.trainers.encode.Encoder.row`: TRL's layout, template tokens
-    such as `Action: ` included), and the log-probability difference of their first differing token at the
+def pair_logprobs(model, row) -> tuple:
+    """(chosen, rejected, branch) for one `Encoded` preference row (`trainers.rows.preference_row`: the ids
+    DPO trains on, the student's generated ids as the rejected side): the summed log-probabilities of the two
+    completions after the prompt, and the log-probability difference of their first differing token at the
     point where they part: what greedy decoding decides between the two."""
     import torch
 
-    from adaptbench.training.trainers.encode import action_of
-
-    prompt, (c_ids, r_ids), _ = enc.row(messages, action_of(chosen), action_of(rejected))
-    k = next(i for i, (a, b) in enumerate(zip(c_ids, r_ids, strict=False)) if a != b)
+    k = next(i for i, (a, b) in enumerate(zip(row.chosen, row.rejected, strict=False)) if a != b)
     out = []
-    for end in (c_ids, r_ids):
-        ids = list(prompt) + list(end)
+    for end in (row.chosen, row.rejected):
+        ids = list(row.prompt) + list(end)
         with torch.no_grad():
-            lp = torch.log_softmax(model(input_ids=torch.tensor([ids])).logits[0, len(prompt) - 1:-1].float(), -1)
+            lp = torch.log_softmax(model(input_ids=torch.tensor([ids])).logits[0, len(row.prompt) - 1:-1].float(), -1)
         out.append((float(lp.gather(1, torch.tensor(end)[:, None]).sum()), lp[k]))
     (c, lp_k), (j, _) = out
-    return c, j, float(lp_k[c_ids[k]] - lp_k[r_ids[k]])
+    return c, j, float(lp_k[row.chosen[k]] - lp_k[row.rejected[k]])
 
 
 def main(argv=None) -> int:
@@ -54,7 +50,8 @@ def main(argv=None) -> int:
     from transformers import AutoModelForCausalLM, AutoTokenizer
 
     from adaptbench.llm.named import resolve_model
-    from adaptbench.training.trainers.encode import Encoder
+    from adaptbench.training.trainers.encode import Encoder, action_of
+    from adaptbench.training.trainers.rows import preference_row
 
     torch.set_num_threads(1)
     with open(args.pairs) as f:
@@ -66,8 +63,7 @@ def main(argv=None) -> int:
         enc = Encoder(tok)
         chosen, rejected, branch = [], [], []
         for r in rows:
-            messages = ast.literal_eval(r["prompt"]) if isinstance(r["prompt"], str) else r["prompt"]
-            c, j, b = pair_logprobs(model, enc, messages, r["chosen"], r["rejected"])
+            c, j, b = pair_logprobs(model, preference_row(enc, r, action_of(r["chosen"])))
             chosen.append(c)
             rejected.append(j)
             branch.append(b)
