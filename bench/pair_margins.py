@@ -4,11 +4,12 @@
         --model runs/read-rdpo/dpo/merged [--kind question] [--limit 250]
 
 For each pair of `--kind` (question or teacher rows of `adapt train data`), the summed log-probability of
-the chosen and of the rejected completion after the pair's prompt, in the token layout DPO trains on, under each `--model`. Prints, per model, the mean chosen and rejected
-log-probabilities, the mean margin (chosen - rejected), the share of pairs where the chosen side is the
-more likely, and at the first token where the two part, the log-probability difference and the share
-where the chosen token is the likelier: what a greedy student would now pick between the two. A measurement of why a DPO model does
-or does not ask (docs/training.md), not a shipped tool.
+the chosen and of the rejected completion after the pair's prompt, in the ids DPO trains on
+(`trainers.rows.preference_row`), under each `--model`. Prints, per model, the mean chosen and rejected
+log-probabilities, the mean margin (chosen - rejected), the share of pairs where the chosen side is the more
+likely, and at the first token where the two part, the log-probability difference and the share where the
+chosen token is the likelier: what a greedy student would now pick between the two. A measurement of why a
+DPO model does or does not ask (docs/training.md), not a shipped tool.
 """
 
 from __future__ import annotations
