@@ -21,7 +21,12 @@
 # The base's evaluation and probe may run beside steps 5-6 by hand (the same commands); their step skips or
 # resumes them.
 # ABLATIONS=1 adds no-DPO (`adapt train sft`) and no-reflection on the same pairs, evaluated the same way.
-# Settings by environment: AGENT, CUT_STEPS, READ_STEPS, T, DPO_STEPS, EVAL_SEEDS, WORKERS, THREADS (training).
+# READ_FROM=student starts step 3 from the shipped student instead of step 1's model (step 1 still runs: its
+# rows are step 3's).
+# Settings by environment: AGENT, CUT_STEPS, READ_FROM, READ_STEPS, T, DPO_STEPS, EVAL_SEEDS, WORKERS, THREADS.
+# The fourteenth session's runs (docs/training.md, "Bases that ask on their own"):
+#     AGENT=oracle-ask T=0.9 ABLATIONS=1 bash bench/read_then_rdpo.sh runs/ask-rdpo
+#     AGENT=oracle-ask READ_FROM=student READ_STEPS=100 T=1.0 bash bench/read_then_rdpo.sh runs/cookask-rdpo
 set -u
 dir=${1:-runs/read-rdpo}
 mkdir -p "$dir/evals"
@@ -47,7 +52,7 @@ step "$agent"   # adapt rollout resumes a partly written file
 run adapt rollout --agent "$agent" "${oracle[@]}" --quiet --out "$dir/$agent.jsonl"
 step read
 [ -d "$dir/read/model-$read_steps" ] || { rm -rf "$dir/read"; run python3 bench/cook_and_read.py --out "$dir/read" \
-  --model "$dir/rows/model" --episodes "$dir/$agent.jsonl" --rows "$dir/rows/rows.jsonl" --steps "$read_steps" \
+  --model "${READ_FROM:-$dir/rows/model}" --episodes "$dir/$agent.jsonl" --rows "$dir/rows/rows.jsonl" --steps "$read_steps" \
   --lr 5e-4 --threads "${THREADS:-1}" "${read[@]}"; }
 step base
 [ -d "$dir/base" ] || run python3 bench/interpolate.py --a student --b "$dir/read/model-$read_steps" --t "${T:-0.7}" --out "$dir/base"
