@@ -26,7 +26,7 @@
 # Settings by environment: AGENT, CUT_STEPS, READ_FROM, READ_STEPS, T, DPO_STEPS, EVAL_SEEDS, WORKERS, THREADS.
 # The fourteenth session's runs (docs/training.md, "Bases that ask on their own"):
 #     AGENT=oracle-ask T=0.9 ABLATIONS=1 bash bench/read_then_rdpo.sh runs/ask-rdpo
-#     AGENT=oracle-ask READ_FROM=student READ_STEPS=100 T=1.0 bash bench/read_then_rdpo.sh runs/cookask-rdpo
+#     AGENT=oracle-ask READ_FROM=student READ_STEPS=100 T=1.0 ABLATIONS=1 bash bench/read_then_rdpo.sh runs/cookask-rdpo
 set -u
 dir=${1:-runs/read-rdpo}
 mkdir -p "$dir/evals"
