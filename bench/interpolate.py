@@ -1,6 +1,10 @@
-"""A model between two of the same shape: every weight (1 - t) * A + t * B.
+r"""A model between two of the same shape: every weight (1 - t) * A + t * B.
 
     python bench/interpolate.py --a student --b runs/cook-read/model-200 --t 0.7 --out runs/interp-0.7
+    python bench/interpolate.py --a student --b runs/cook-read/model-200 --t 1 --only 'self_attn' --out runs/attn
+
+`--only REGEX` mixes only the weights whose names match (e.g. `self_attn`, `layers\.[23]\.`); every other
+weight stays A's (the fifteenth session's hybrids: one model's attention, the other's MLPs).
 
 Used in the twelfth session (docs/training.md) to keep part of what a fine-tuned student learned (B: reading
 the user's answer) while pulling its weights back toward the student it came from (A: cooking). The
@@ -19,10 +23,13 @@ def main(argv=None) -> int:
     ap.add_argument("--a", required=True, help="a model name or directory (weight 1 - t)")
     ap.add_argument("--b", required=True, help="a model directory of the same shape (weight t)")
     ap.add_argument("--t", type=float, required=True, help="B's weight, 0 to 1")
+    ap.add_argument("--only", default="", help="a regular expression: mix only the weights it finds in their names")
     ap.add_argument("--out", required=True)
     args = ap.parse_args(argv)
     if not 0.0 <= args.t <= 1.0:
         ap.error(f"--t {args.t}: give a weight from 0 to 1")
+
+    import re
 
     import torch
     from transformers import AutoModelForCausalLM, AutoTokenizer
@@ -34,10 +41,14 @@ def main(argv=None) -> int:
     b = model.state_dict()
     if a.keys() != b.keys() or any(a[k].shape != b[k].shape for k in b):
         ap.error(f"{args.a} and {args.b} differ in shape: they cannot be interpolated")
-    model.load_state_dict({k: (1 - args.t) * a[k] + args.t * b[k] for k in b})
+    mixed = [k for k in b if re.search(args.only, k)]
+    if not mixed:
+        ap.error(f"--only {args.only!r} matches no weight name (e.g. {next(iter(b))})")
+    model.load_state_dict({k: (1 - args.t) * a[k] + args.t * b[k] if k in mixed else a[k] for k in b})
     model.save_pretrained(args.out)
     AutoTokenizer.from_pretrained(args.b).save_pretrained(args.out)
-    print(f"{args.out}: {1 - args.t:g} x {args.a} + {args.t:g} x {args.b}")
+    where = f" ({len(mixed)} of {len(b)} weights, the rest {args.a}'s)" if len(mixed) < len(b) else ""
+    print(f"{args.out}: {1 - args.t:g} x {args.a} + {args.t:g} x {args.b}{where}")
     return 0
 
 

@@ -23,7 +23,10 @@
 # ABLATIONS=1 adds no-DPO (`adapt train sft`) and no-reflection on the same pairs, evaluated the same way.
 # READ_FROM=student starts step 3 from the shipped student instead of step 1's model (step 1 still runs: its
 # rows are step 3's).
-# Settings by environment: AGENT, CUT_STEPS, READ_FROM, READ_STEPS, T, DPO_STEPS, EVAL_SEEDS, WORKERS, THREADS.
+# ORACLE_SEEDS=130-169 gives step 3 the oracle's episodes on 40 scenes instead of 6 (the fifteenth session: on 6
+# scenes the reader copies those scenes' object names into new ones and cooks less).
+# Settings by environment: AGENT, ORACLE_SEEDS, CUT_STEPS, READ_FROM, READ_STEPS, T, DPO_STEPS, EVAL_SEEDS, WORKERS,
+# THREADS.
 # The fourteenth session's runs (docs/training.md, "Bases that ask on their own"):
 #     AGENT=oracle-ask T=0.9 ABLATIONS=1 bash bench/read_then_rdpo.sh runs/ask-rdpo
 #     AGENT=oracle-ask READ_FROM=student READ_STEPS=100 T=1.0 ABLATIONS=1 bash bench/read_then_rdpo.sh runs/cookask-rdpo
@@ -39,7 +42,7 @@ if [ -n "${DRY:-}" ]; then
   evals=(--personas leila --tasks eggs --seeds 0 --max-steps 8); dpo_steps=${DPO_STEPS:-2}; probe=(--tasks eggs)
 else
   cut=(--steps "${CUT_STEPS:-1500}" --eval-every 750); read_steps=${READ_STEPS:-200}; read=(--eval-every 100 --pairs 60)
-  oracle=(--personas "$train" --tasks all --seeds 124-129); pairs=(--personas "$train" --tasks all)
+  oracle=(--personas "$train" --tasks all --seeds "${ORACLE_SEEDS:-124-129}"); pairs=(--personas "$train" --tasks all)
   evals=(--personas "$unseen" --tasks all --seeds "${EVAL_SEEDS:-0-7}" --max-steps 50); dpo_steps=${DPO_STEPS:-60}; probe=()
 fi
 step() { echo "== $1 ($(date -u +%H:%M:%S))"; }
