@@ -30,6 +30,9 @@
 # The fourteenth session's runs (docs/training.md, "Bases that ask on their own"):
 #     AGENT=oracle-ask T=0.9 ABLATIONS=1 bash bench/read_then_rdpo.sh runs/ask-rdpo
 #     AGENT=oracle-ask READ_FROM=student READ_STEPS=100 T=1.0 ABLATIONS=1 bash bench/read_then_rdpo.sh runs/cookask-rdpo
+# The fifteenth session's ("A reader trained on forty scenes"; its steps 1-3 were run by hand on 2,370 of these
+# episodes, 8 personas):
+#     AGENT=oracle-ask CUT_STEPS=1000 ORACLE_SEEDS=130-169 READ_STEPS=300 T=0.9 ABLATIONS=1 bash bench/read_then_rdpo.sh runs/many-rdpo
 set -u
 dir=${1:-runs/read-rdpo}
 mkdir -p "$dir/evals"
