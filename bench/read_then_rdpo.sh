@@ -24,7 +24,7 @@
 # READ_FROM=student starts step 3 from the shipped student instead of step 1's model (step 1 still runs: its
 # rows are step 3's).
 # ORACLE_SEEDS=130-169 gives step 3 the oracle's episodes on 40 scenes instead of 6 (the fifteenth session: on 6
-# scenes the reader copies those scenes' object names into new ones and cooks less).
+# scenes the reader named objects the scene before it did not have, and cooked 2-4 times fewer dishes).
 # Settings by environment: AGENT, ORACLE_SEEDS, CUT_STEPS, READ_FROM, READ_STEPS, T, DPO_STEPS, EVAL_SEEDS, WORKERS,
 # THREADS.
 # The fourteenth session's runs (docs/training.md, "Bases that ask on their own"):
