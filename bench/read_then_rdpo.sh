@@ -25,8 +25,10 @@
 # rows are step 3's).
 # ORACLE_SEEDS=130-169 gives step 3 the oracle's episodes on 40 scenes instead of 6 (the fifteenth session: on 6
 # scenes the reader named objects the scene before it did not have, and cooked 2-4 times fewer dishes).
-# Settings by environment: AGENT, ORACLE_SEEDS, CUT_STEPS, READ_FROM, READ_STEPS, T, DPO_STEPS, EVAL_SEEDS, WORKERS,
-# THREADS.
+# QSET=bank decodes the student's questions from the domain's own (`--question-set bank`, docs/grammar.md) in
+# steps 5 and 7 (the sixteenth session: the student's free questions were garbled and off the task).
+# Settings by environment: AGENT, ORACLE_SEEDS, CUT_STEPS, READ_FROM, READ_STEPS, T, QSET, DPO_STEPS, EVAL_SEEDS,
+# WORKERS, THREADS.
 # The fourteenth session's runs (docs/training.md, "Bases that ask on their own"):
 #     AGENT=oracle-ask T=0.9 ABLATIONS=1 bash bench/read_then_rdpo.sh runs/ask-rdpo
 #     AGENT=oracle-ask READ_FROM=student READ_STEPS=100 T=1.0 ABLATIONS=1 bash bench/read_then_rdpo.sh runs/cookask-rdpo
@@ -48,14 +50,15 @@ else
   oracle=(--personas "$train" --tasks all --seeds "${ORACLE_SEEDS:-124-129}"); pairs=(--personas "$train" --tasks all)
   evals=(--personas "$unseen" --tasks all --seeds "${EVAL_SEEDS:-0-7}" --max-steps 50); dpo_steps=${DPO_STEPS:-60}; probe=()
 fi
+qset=${QSET:-free}   # bank: the student's Ask names one of the domain's questions, in the pairs and the evaluations
 step() { echo "== $1 ($(date -u +%H:%M:%S))"; }
 run() { "$@" || { echo "failed: $*" >&2; exit 1; }; }
 
 step rows
 [ -d "$dir/rows/model" ] || run python3 bench/answer_context.py --out "$dir/rows" "${cut[@]}"
 agent=${AGENT:-oracle}
-step "$agent"   # adapt rollout resumes a partly written file
-run adapt rollout --agent "$agent" "${oracle[@]}" --quiet --out "$dir/$agent.jsonl"
+step "$agent"   # adapt rollout resumes a partly written file; only step 3 reads it
+[ -d "$dir/read/model-$read_steps" ] || run adapt rollout --agent "$agent" "${oracle[@]}" --quiet --out "$dir/$agent.jsonl"
 step read
 [ -d "$dir/read/model-$read_steps" ] || { rm -rf "$dir/read"; run python3 bench/cook_and_read.py --out "$dir/read" \
   --model "${READ_FROM:-$dir/rows/model}" --episodes "$dir/$agent.jsonl" --rows "$dir/rows/rows.jsonl" --steps "$read_steps" \
@@ -64,7 +67,7 @@ step base
 [ -d "$dir/base" ] || run python3 bench/interpolate.py --a student --b "$dir/read/model-$read_steps" --t "${T:-0.7}" --out "$dir/base"
 step pairs
 run adapt train data --student "$dir/base" --split 0 --seeds 100 "${pairs[@]}" --max-steps 50 --batch 16 \
-  --questions choices --workers "${WORKERS:-2}" --out "$dir/pairs"
+  --questions choices --question-set "$qset" --workers "${WORKERS:-2}" --out "$dir/pairs"
 lora=(--lr 3e-4 --lora-targets all-linear --lora-r 8 --lora-alpha 16 --max-steps "$dpo_steps" --threads "${THREADS:-2}")
 step dpo
 [ -d "$dir/dpo/merged" ] || run adapt train dpo --data "$dir/pairs" --model "$dir/base" --out "$dir/dpo" --loss sigmoid+sft "${lora[@]}"
@@ -79,7 +82,8 @@ fi
 spec=()
 for m in "${methods[@]}"; do
   step "eval ${m%%=*}"   # resumes a partly written file
-  run adapt rollout --agent planner --model "$dir/${m#*=}" "${evals[@]}" --batch 16 --quiet --out "$dir/evals/${m%%=*}.jsonl"
+  run adapt rollout --agent planner --model "$dir/${m#*=}" "${evals[@]}" --question-set "$qset" --batch 16 --quiet \
+    --out "$dir/evals/${m%%=*}.jsonl"
   spec+=(--method "${m%%=*}@0=$dir/evals/${m%%=*}.jsonl")
 done
 step table

@@ -72,6 +72,22 @@ def test_always_ask_switches_to_the_ask_only_grammar(domain, backend):
     assert not policy._prepare(ep.view())[2]
 
 
+def test_a_bank_policy_asks_only_the_domains_questions(domain, backend):
+    from adaptbench.grammars.index import domain_questions
+    from adaptbench.harness.batches import run_batched
+    from adaptbench.llm.policies import LLMPolicy
+
+    policy = LLMPolicy(backend, domain, "always-ask-llm", every=1, max_tokens=40, questions="bank")
+    assert policy.config()["questions"] == "bank" and "questions" not in LLMPolicy(backend, domain).config()
+    rec = next(iter(run_batched([Job("always-ask-llm", "juan", "eggs", 0)], domain, policy, _offline, batch=1,
+                                steps=3)))
+    asked = [s["action"] for s in rec["steps"] if s["stats"]["grammar"] == "ask_only"]
+    assert asked and all(a[len('Ask "'):-1] in domain_questions(domain) for a in asked), asked
+    assert rec["agent_config"]["questions"] == "bank"
+    with pytest.raises(ValueError, match="unknown question set 'some'"):
+        LLMPolicy(backend, domain, questions="some")
+
+
 def test_llm_user_answers_in_one_line(domain, backend):
     from adaptbench.llm.user import LLMUser
 
@@ -97,6 +113,15 @@ def test_cli_rollout_with_llm_user_then_eval(tiny, tmp_path, capsys):
     assert {"prompt_tokens", "tokens", "level", "parsed", "seconds"} <= set(rec["steps"][0]["stats"])
     assert main(argv) == 0 and "0 episode(s) run, 1 already" in capsys.readouterr().out  # resumed
     assert main(["eval", str(out)]) == 0
+
+
+def test_cli_rollout_records_the_question_set(tiny, tmp_path):
+    from adaptbench.cli import main
+
+    out = tmp_path / "bank.jsonl"
+    assert main(["rollout", "--agent", "planner", "--model", str(tiny), "--personas", "juan", "--tasks", "eggs",
+                 "--seeds", "0", "--max-steps", "1", "--question-set", "bank", "--out", str(out), "--quiet"]) == 0
+    assert json.loads(out.read_text())["agent_config"]["questions"] == "bank"
 
 
 def test_cli_errors_are_clear(tmp_path, capsys):

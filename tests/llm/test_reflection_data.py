@@ -169,6 +169,17 @@ def test_train_data_refuses_evaluation_seeds_and_a_length_that_cannot_hold_the_t
     assert "Traceback" not in done.stderr and not (tmp_path / "d" / "pairs.jsonl").exists()
 
 
+@SKIP_MODELS
+def test_train_data_records_the_students_question_set(tiny, tmp_path):
+    cmd = [sys.executable, "-m", "adaptbench.cli", "train", "data", "--student", str(tiny), "--out", str(tmp_path / "d"),
+           "--personas", "sarah", "--tasks", "eggs", "--split", "1", "--batch", "1", "--max-steps", "2",
+           "--question-set", "bank"]
+    done = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    summary = json.loads((tmp_path / "d" / "summary.json").read_text())
+    assert summary["selection"]["question_set"] == "bank"
+
+
 def test_training_commands_default_to_seeds_apart_from_evaluation():
     from adaptbench.cli.main import build_parser
     from adaptbench.harness.rollout import parse_seeds

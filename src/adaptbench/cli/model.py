@@ -43,6 +43,10 @@ def add_rollout_options(p) -> None:
                    "for its questions); recorded with each episode, and `adapt eval` compares one budget at a time")
     g.add_argument("--budget", type=int, help="prompt token budget (oldest steps dropped first; default: the "
                    "model's context less the generation limits)")
+    g.add_argument("--question-set", choices=["free", "bank"], default="free",
+                   help="what an Ask may say: free (any quoted text, the paper's; default) or bank (one of the "
+                   "domain's own questions, the words oracle-ask uses: for a student too small to word one; "
+                   "docs/grammar.md); recorded with each episode")
     add_sampling_options(g)
     g.add_argument("--user", choices=["offline", "llm"], default="offline", help="who answers questions")
     g.add_argument("--user-model", help="model directory of the LLM user (default: --model)")
@@ -156,7 +160,8 @@ def rollout_options(args, agents: list) -> dict:
     else:
         make_user, users = OfflineUser, {"user": "offline"}
     return {"backend": backend, "make_user": make_user, "user_config": users, "batch": args.batch,
-            "steps": args.max_steps, "budget": args.budget}
+            "steps": args.max_steps, "budget": args.budget,
+            **({"questions": args.question_set} if args.question_set != "free" else {})}
 
 
 def resolve_model(model):

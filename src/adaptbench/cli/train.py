@@ -96,6 +96,7 @@ def _recorded_selection(args, domain, split, personas, tasks, seeds) -> dict:
             "interactions": args.interactions, "questions": args.questions, "eps1": args.eps1, "eps2": args.eps2,
             "max_length": args.max_length, "max_steps": args.max_steps, "skip_after_failures": args.skip_after_failures,
             "temperature": args.temperature, "sample_seed": args.sample_seed,
+            **({"question_set": args.question_set} if args.question_set != "free" else {}),
             **({"backend": "openai", "model": _served_name(args)} if args.backend == "openai" else {})}
 
 
@@ -165,14 +166,15 @@ def _cmd_data(args) -> int:
     settings = DataSettings(split, personas, tasks, seeds, args.interactions, args.questions, args.eps1, args.eps2,
                             args.max_length, args.batch, _workers(args.workers), args.max_steps,
                             args.skip_after_failures)
-    need = opening_tokens(domain, student_policy(backend, domain), settings)
+    need = opening_tokens(domain, student_policy(backend, domain, questions=args.question_set), settings)
     if need > args.max_length:
         _fail(f"--max-length {args.max_length} cannot hold a row's opening prompt (instructions, layout, task) and "
               f"its completion ({need} tokens): raise --max-length to at least {need}, more to keep questions and "
               f"answers (default {MAX_LENGTH})")
 
     def make_builder(sink):
-        return Builder(domain, student_policy(backend, domain), settings, sink, args.student, teacher)
+        return Builder(domain, student_policy(backend, domain, questions=args.question_set), settings, sink,
+                       args.student, teacher)
 
     def progress(done: int, total: int) -> None:
         print(f"\r{done}/{total} episodes, {len(store.rows)} steps", end="", file=sys.stderr, flush=True)
@@ -239,6 +241,9 @@ def add_data(train_sub) -> None:
                    help="who proposes the question: the student from the reflection prompt (the paper); for a model "
                         "too small to write one, topics (a question about the preference the teacher named) or "
                         "choices (oracle-ask's question at the choice a^t realises, else as topics)")
+    p.add_argument("--question-set", choices=["free", "bank"], default="free",
+                   help="what the student's own Ask may say as it plays: free (any quoted text; default) or bank "
+                        "(one of the domain's questions, as `adapt rollout --question-set bank` decodes it)")
     p.add_argument("--teacher-model", help="an LLM teacher's model directory: the privileged teacher prompt "
                    "(the persona's preferences, the unmet ones reminded each step) proposing a^t under the grammar "
                    "(default: the scripted oracle)")

@@ -8,9 +8,9 @@ random sampler.
     text = g.update(env.observed())          # after the next step: only changed terminals re-emitted
 """
 
-from .emit import LEVELS, VARIANTS, Base, Observed, build_base
+from .emit import LEVELS, QUESTION_SETS, VARIANTS, Base, Observed, build_base
 from .index import GrammarIndex, build_index
 from .state import GrammarCache, StateGrammar
 
-__all__ = ["LEVELS", "VARIANTS", "Base", "GrammarCache", "GrammarIndex", "Observed", "StateGrammar",
+__all__ = ["LEVELS", "QUESTION_SETS", "VARIANTS", "Base", "GrammarCache", "GrammarIndex", "Observed", "StateGrammar",
            "build_base", "build_index"]

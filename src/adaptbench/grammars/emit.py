@@ -14,6 +14,7 @@ from .index import GrammarIndex, Lit, Slot
 
 LEVELS = ("syntax", "observed", "typed")
 VARIANTS = ("default", "never_ask", "ask_only")
+QUESTION_SETS = ("free", "bank")  # `Ask` takes any quoted text, or one of the domain's own questions
 
 QUESTION = r'/"[^"\\\x00-\x1F\x7F]+"/'
 RESULT = r"/[a-z][a-z0-9_]*/"
@@ -78,6 +79,19 @@ class Base:
     static: str  # verb, category and free-text terminals
     level: str
     variant: str
+    questions: str = "free"
+
+
+def question_terminal(index: GrammarIndex, questions: str = "free") -> str:
+    """The `QUESTION` terminal: any quoted text (`free`), or one of the domain's questions, quotes included
+    (`bank`: for a student too small to word a question, it chooses one; docs/grammar.md)."""
+    if questions not in QUESTION_SETS:
+        raise ValueError(f"unknown question set '{questions}' (question sets: {', '.join(QUESTION_SETS)})")
+    if questions == "free":
+        return QUESTION
+    if not index.questions:
+        raise ValueError("--questions bank: the domain's choices ask no questions (no `ask:` in its recipes)")
+    return alternatives(f'"{q}"' for q in index.questions)
 
 
 def _form_text(form, level: str, verb_names: dict) -> str:
@@ -109,8 +123,10 @@ def _wanted(index: GrammarIndex, variant: str) -> list:
     return list(index.actions)
 
 
-def build_base(index: GrammarIndex, level: str = "observed", variant: str = "default", title: str = "") -> Base:
-    """The static part of a grammar for a level and variant (`title` goes into the header comment)."""
+def build_base(index: GrammarIndex, level: str = "observed", variant: str = "default", title: str = "",
+               questions: str = "free") -> Base:
+    """The static part of a grammar for a level, variant and question set (`title` goes into the header
+    comment)."""
     if level not in LEVELS:
         raise ValueError(f"unknown level '{level}' (levels: {', '.join(LEVELS)})")
     if variant not in VARIANTS:
@@ -126,14 +142,16 @@ def build_base(index: GrammarIndex, level: str = "observed", variant: str = "def
     if "query" in used:
         static.append(f"QUERY: {QUERY}" if level == "syntax" else f"CATEGORY: {alternatives(index.categories)}")
     static += [f"{name}: {regex}" for name, kind, regex in
-               (("QUESTION", "question", QUESTION), ("RESULT", "result", RESULT)) if kind in used]
+               (("QUESTION", "question", question_terminal(index, questions)), ("RESULT", "result", RESULT))
+               if kind in used]
     if level == "syntax" and used & {"entity", "content", "thing"}:
         static.append(f"NAME: {NAME}")
     if level == "typed" and "thing" in used:
         static.append("?thing: ENTITY | CONTENT")
     header = (f"// adaptbench action grammar (generated: adapt grammar build; do not edit)\n"
-              f"// spec {index.spec_hash} · level {level} · variant {variant}" + (f" · {title}" if title else ""))
-    return Base(header, rules, {a.id: a.kinds for a in actions}, "\n".join(static), level, variant)
+              f"// spec {index.spec_hash} · level {level} · variant {variant}"
+              + (" · questions bank" if questions == "bank" else "") + (f" · {title}" if title else ""))
+    return Base(header, rules, {a.id: a.kinds for a in actions}, "\n".join(static), level, variant, questions)
 
 
 def usable_actions(base: Base, terminals) -> list:

@@ -76,6 +76,7 @@ class GrammarIndex:
     layout: tuple  # rooms and furniture (what every episode starts knowing), sorted
     layout_contents: tuple  # contents of the layout, sorted
     collisions: tuple  # ((action id, verb), ...) resolved in favour of the dedicated action
+    questions: tuple = ()  # the domain's questions (each choice's `ask`), sorted: the `bank` question set
 
 
 def _pieces(form: str, types: dict) -> tuple:
@@ -224,4 +225,11 @@ def build_index(domain: CompiledDomain) -> GrammarIndex:
     contents = sorted({c for e in domain.entities if e.kind != "movable" for c in e.contents})
     return GrammarIndex(domain.spec_hash, actions, tuple(sorted(domain.verbs)), _categories(domain),
                         tuple(sorted(e.id for e in domain.entities)), tuple(sorted(domain.substance)),
-                        tuple(layout), tuple(contents), collisions)
+                        tuple(layout), tuple(contents), collisions, domain_questions(domain))
+
+
+def domain_questions(domain: CompiledDomain) -> tuple:
+    """Every question the domain's choices ask (the planning choices' and each recipe's `ask`), sorted:
+    the words the scripted askers use, and the questions a `bank` grammar allows."""
+    choices = [*domain.planning, *(c for r in domain.recipes for c in r.choices)]
+    return tuple(sorted({c.ask for c in choices if c.ask}))

@@ -12,25 +12,26 @@ from .index import GrammarIndex
 
 
 class GrammarCache:
-    """The static bases of one domain's grammars, by (task, level, variant); built on first use."""
+    """The static bases of one domain's grammars, by (task, level, variant, question set); built on first use."""
 
     def __init__(self, index: GrammarIndex, titles: dict | None = None):
         self.index = index
         self.titles = titles or {}  # task id -> header title
         self._bases: dict = {}
 
-    def base(self, task: str | None, level: str = "observed", variant: str = "default") -> Base:
-        """The cached static part for a task, level and variant."""
-        key = (task, level, variant)
+    def base(self, task: str | None, level: str = "observed", variant: str = "default",
+             questions: str = "free") -> Base:
+        """The cached static part for a task, level, variant and question set (`free` or `bank`)."""
+        key = (task, level, variant, questions)
         hit = self._bases.get(key)
         if hit is None:
-            hit = self._bases[key] = build_base(self.index, level, variant, self.titles.get(task, ""))
+            hit = self._bases[key] = build_base(self.index, level, variant, self.titles.get(task, ""), questions)
         return hit
 
     def state(self, task: str | None, observed: Observed, level: str = "observed",
-              variant: str = "default") -> StateGrammar:
+              variant: str = "default", questions: str = "free") -> StateGrammar:
         """A grammar for a state, ready to be updated as the agent observes more."""
-        return StateGrammar(self.base(task, level, variant), observed)
+        return StateGrammar(self.base(task, level, variant, questions), observed)
 
 
 class _Terminal:

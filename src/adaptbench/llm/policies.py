@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import time
 
-from ..grammars import GrammarCache
+from ..grammars import QUESTION_SETS, GrammarCache
 from ..harness.policy import Decision, Policy
 from ..runtime.index import runtime_index
 from . import boundary
@@ -49,9 +49,12 @@ class LLMPolicy(Policy):
     """A language-model agent of one kind (`AGENTS`) over a backend."""
 
     def __init__(self, backend, domain, agent: str = "planner", level: str = "observed", budget: int | None = None,
-                 max_tokens: int = 48, every: int = ASK_EVERY, user: str = "the user"):
+                 max_tokens: int = 48, every: int = ASK_EVERY, user: str = "the user", questions: str = "free"):
         if agent not in AGENTS:
             raise ValueError(f"unknown LLM agent '{agent}' (choose from: {', '.join(AGENTS)})")
+        if questions not in QUESTION_SETS:
+            raise ValueError(f"unknown question set '{questions}' (choose from: {', '.join(QUESTION_SETS)})")
+        self.questions = questions  # `bank`: an Ask names one of the domain's questions (grammars.emit)
         self.name, self.kind = agent, AGENTS[agent]
         self.backend, self.domain, self.level = backend, domain, level
         self.max_tokens, self.every = max_tokens, every
@@ -82,8 +85,10 @@ class LLMPolicy(Policy):
         return self.context - self._reserved()
 
     def config(self) -> dict:
-        """Agent, prompt kind, grammar level, token limits and the backend's model."""
+        """Agent, prompt kind, grammar level (and question set, when not free), token limits and the
+        backend's model."""
         return {"agent": self.name, "prompt": self.kind, "level": self.level, "budget": self.budget,
+                **({"questions": self.questions} if self.questions != "free" else {}),
                 "max_tokens": self.max_tokens, **({"every": self.every} if self.kind == "always_ask" else {}),
                 **self.backend.config()}
 
@@ -105,7 +110,7 @@ class LLMPolicy(Policy):
             ep = self._episodes[episode] = _Episode(None)
         if ep.grammar is None and view is not None:
             ep.grammar = self.grammars.state(view.task, view.observed, self.level,
-                                             VARIANTS.get(self.kind, "default"))
+                                             VARIANTS.get(self.kind, "default"), self.questions)
         return ep
 
     def force_ask(self, view) -> bool:
@@ -134,7 +139,7 @@ class LLMPolicy(Policy):
         self._check_fits(prompt)
         text = ep.grammar.update(view.observed)
         if force:
-            text = self.grammars.state(view.task, view.observed, self.level, "ask_only").text
+            text = self.grammars.state(view.task, view.observed, self.level, "ask_only", self.questions).text
         return prompt, text, force
 
     def _check_fits(self, prompt) -> None:
