@@ -142,6 +142,43 @@ def test_a_template_that_renders_the_prompt_otherwise_gets_the_generation_layout
 
 
 @SKIP_MODELS
+def test_the_generation_layout_is_what_the_planner_plays_on(backend):
+    from adaptbench.llm.boundary import split_tail
+    from adaptbench.llm.chat import render
+    from adaptbench.llm.prompts import Prompt
+    from adaptbench.training.trainers.encode import Encoder
+    from adaptbench.training.trainers.rows import dpo_rows, sft_rows
+
+    tok = backend.tokenizer
+    rows = [_row(0, "teacher", _messages(5)), _row(1, "question", _messages(5), chosen='Ask "Cheese?"')]
+    rows = [dict(r, rejected_token_ids=[5, 6, tok.eos_token_id]) for r in rows]
+    enc = Encoder(tok, "generation")
+    d = dpo_rows(rows, enc)
+    h = split_tail(tok, render(tok, Prompt(tuple(rows[0]["prompt"]), "Action: ")))
+    assert list(d[0].prompt) == backend.encode(h.head)  # the healed prompt the planner reads, prefix and all
+    assert tok.decode(d[0].prompt + d[0].chosen).endswith("Action: Look for pan" + tok.eos_token)
+    assert "Action" not in tok.decode(d[1].chosen) and tok.decode(d[1].chosen).endswith('Ask "Cheese?"' + tok.eos_token)
+    assert tok.decode(d[0].rejected).endswith("Look for eggs" + tok.eos_token) and not d[0].generated_rejected
+    assert sft_rows(rows, enc)[1].chosen == d[1].chosen
+    with pytest.raises(ValueError, match="unknown row layout 'other'"):
+        Encoder(tok, "other")
+
+
+@SKIP_MODELS
+def test_a_run_from_before_a_setting_existed_resumes_with_its_default(tiny, tmp_path):
+    from adaptbench.training.trainers.config import DPOSettings
+    from adaptbench.training.trainers.run import TrainError, _recorded, check_resume
+
+    s = DPOSettings(data=str(tmp_path), model=str(tiny), out=str(tmp_path / "o"))
+    old = {k: v for k, v in _recorded(s).items() if k != "layout"}
+    (tmp_path / "settings.json").write_text(json.dumps(old))
+    check_resume(s, tmp_path)  # no `layout` recorded: it ran with the default
+    with pytest.raises(TrainError, match="layout chat -> generation"):
+        check_resume(DPOSettings(data=str(tmp_path), model=str(tiny), out=str(tmp_path / "o"), layout="generation"),
+                     tmp_path)
+
+
+@SKIP_MODELS
 def test_data_on_evaluation_seeds_is_refused_unless_asked(tiny, tmp_path):
     data = tmp_path / "data"
     _pairs(data, [_row(0, "teacher", _messages(5)), dict(_row(1, "teacher", _messages(5)), seed=100)])

@@ -69,6 +69,11 @@ class TrainSettings:
     skip_bad_rows: bool = setting(False, "leave out the --data lines that are not usable rows (counted, reported "
                                          "and recorded in train.json) instead of stopping at the first (exit 2, "
                                          "naming its file:line)", bool)
+    layout: str = setting("chat", "how a row is laid out: chat (TRL's conversational layout: the completion is the "
+                                  "whole assistant turn, `Action: ` and the end of turn included; default) or "
+                                  "generation (the prompt ends with `Action: ` as when the model plays, the completion "
+                                  "is the action and the end token: for a student that never writes the prefix)",
+                          str, ("chat", "generation"))
 
     def check(self) -> None:
         """SettingsError on a value out of range."""

@@ -15,6 +15,10 @@ reads and writes when it plays (the healed `...Action:` prompt, then the action)
 (`tests/llm/test_trainers.py`). For a chat template that renders the prompt differently once an answer
 follows it, the row falls back to the generation layout: the prompt rendered with the `Action: ` prefix and
 healed as generation heals it (`boundary.split_tail`), the completion the action's ids and the end token.
+`Encoder(tokenizer, layout="generation")` (`adapt train ... --layout generation`) takes that layout for every
+row: for a student behaviour-cloned with the prefix in its prompt, which never writes `Action: ` or the
+template's end of turn itself (docs/training.md: in TRL's layout they are ~40 nats of every completion, most
+of an SFT term's loss, and 240 DPO updates on them broke the tiny student's cooking).
 """
 
 from __future__ import annotations
@@ -26,6 +30,7 @@ from ...llm.chat import encode, render
 from ...llm.prompts import ACTION_PREFIX, Prompt
 
 IGNORE = -100  # label of a token the SFT loss skips
+LAYOUTS = ("chat", "generation")  # TRL's conversational layout, or the one the model plays in (`--layout`)
 
 
 @dataclass(frozen=True)
@@ -58,8 +63,10 @@ class Encoded:
 class Encoder:
     """Token ids of prompts and completions for one tokenizer."""
 
-    def __init__(self, tokenizer):
-        self.tok = tokenizer
+    def __init__(self, tokenizer, layout: str = "chat"):
+        if layout not in LAYOUTS:
+            raise ValueError(f"unknown row layout '{layout}' (layouts: {', '.join(LAYOUTS)})")
+        self.tok, self.layout = tokenizer, layout
         if tokenizer.eos_token_id is None:
             raise ValueError("the tokenizer has no end-of-sequence token: the trained model could not stop")
 
@@ -82,9 +89,10 @@ class Encoder:
 
     def row(self, messages, *actions) -> tuple:
         """(prompt ids, [completion ids of each action], True) in TRL's layout, or (..., False) in the
-        generation layout when the template does not allow TRL's (see the module)."""
+        generation layout: when the template does not allow TRL's (see the module), or when asked for
+        (`layout="generation"`, `--layout generation`)."""
         msgs = tuple(dict(m) for m in messages)
-        turns = self.turns(msgs, actions)
+        turns = self.turns(msgs, actions) if self.layout == "chat" else None
         if turns is not None:
             return tuple(encode(self.tok, render(self.tok, Prompt(msgs, "")))), [tuple(self._ids(t)) for t in turns], True
         h = split_tail(self.tok, render(self.tok, Prompt(msgs, ACTION_PREFIX)))

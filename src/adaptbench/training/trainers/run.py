@@ -92,7 +92,7 @@ def prepare(method: str, s, tokenizer, spec=None, log=None, data: Data | None = 
     from . import rows as R
 
     data = data or read_data(method, s, log, tokenizer)
-    enc = Encoder(tokenizer)
+    enc = Encoder(tokenizer, getattr(s, "layout", "chat"))
     left: dict = {}
     if method == "star-gate":
         from ...compiler import load_domain
@@ -163,12 +163,19 @@ def _recorded(s) -> dict:
     return {**as_dict(s), "data": str(Path(s.data).resolve()), "model": str(Path(s.model).resolve())}
 
 
+def _defaults(s) -> dict:
+    """Each setting's default (what a settings.json written before the setting existed ran with)."""
+    from dataclasses import MISSING, fields
+
+    return {f.name: f.default for f in fields(s) if f.default is not MISSING}
+
+
 def check_resume(s, out: Path) -> None:
     """Refuse to go on with a run in OUT whose settings differ (but for RESUMABLE)."""
     path = out / "settings.json"
     now = _recorded(s)
     if path.is_file():
-        before = json.loads(path.read_text())
+        before = {**_defaults(s), **json.loads(path.read_text())}  # a setting added since: its default
         diff = sorted(k for k in now if k not in RESUMABLE and before.get(k) != now[k])
         if diff:
             changes = ", ".join(f"{k} {before.get(k)} -> {now[k]}" for k in diff)
