@@ -27,14 +27,17 @@
 # scenes the reader named objects the scene before it did not have, and cooked 2-4 times fewer dishes).
 # QSET=bank decodes the student's questions from the domain's own (`--question-set bank`, docs/grammar.md) in
 # steps 5 and 7 (the sixteenth session: the student's free questions were garbled and off the task).
-# Settings by environment: AGENT, ORACLE_SEEDS, CUT_STEPS, READ_FROM, READ_STEPS, T, QSET, DPO_STEPS, EVAL_SEEDS,
-# WORKERS, THREADS.
+# LAYOUT=generation lays the trainers' rows out as the student plays (`adapt train ... --layout generation`).
+# Settings by environment: AGENT, ORACLE_SEEDS, CUT_STEPS, READ_FROM, READ_STEPS, T, QSET, DPO_STEPS, LAYOUT,
+# EVAL_SEEDS, WORKERS, THREADS.
 # The fourteenth session's runs (docs/training.md, "Bases that ask on their own"):
 #     AGENT=oracle-ask T=0.9 ABLATIONS=1 bash bench/read_then_rdpo.sh runs/ask-rdpo
 #     AGENT=oracle-ask READ_FROM=student READ_STEPS=100 T=1.0 ABLATIONS=1 bash bench/read_then_rdpo.sh runs/cookask-rdpo
 # The fifteenth session's ("A reader trained on forty scenes"; its steps 1-3 were run by hand on 2,370 of these
 # episodes, 8 personas):
 #     AGENT=oracle-ask CUT_STEPS=1000 ORACLE_SEEDS=130-169 READ_STEPS=300 T=0.9 ABLATIONS=1 bash bench/read_then_rdpo.sh runs/many-rdpo
+# The sixteenth session's ("Questions chosen from the domain's own"; steps 1-4 linked in from runs/many-rdpo):
+#     AGENT=oracle-ask CUT_STEPS=1000 ORACLE_SEEDS=130-169 READ_STEPS=300 T=0.9 QSET=bank ABLATIONS=1 bash bench/read_then_rdpo.sh runs/bank-rdpo
 set -u
 dir=${1:-runs/read-rdpo}
 mkdir -p "$dir/evals"
@@ -68,7 +71,8 @@ step base
 step pairs
 run adapt train data --student "$dir/base" --split 0 --seeds 100 "${pairs[@]}" --max-steps 50 --batch 16 \
   --questions choices --question-set "$qset" --workers "${WORKERS:-2}" --out "$dir/pairs"
-lora=(--lr 3e-4 --lora-targets all-linear --lora-r 8 --lora-alpha 16 --max-steps "$dpo_steps" --threads "${THREADS:-2}")
+lora=(--lr 3e-4 --lora-targets all-linear --lora-r 8 --lora-alpha 16 --max-steps "$dpo_steps" --threads "${THREADS:-2}"
+      --layout "${LAYOUT:-chat}")
 step dpo
 [ -d "$dir/dpo/merged" ] || run adapt train dpo --data "$dir/pairs" --model "$dir/base" --out "$dir/dpo" --loss sigmoid+sft "${lora[@]}"
 methods=(base=base reflection-dpo=dpo/merged)
