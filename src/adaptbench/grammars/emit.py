@@ -90,7 +90,7 @@ def question_terminal(index: GrammarIndex, questions: str = "free") -> str:
     if questions == "free":
         return QUESTION
     if not index.questions:
-        raise ValueError("--questions bank: the domain's choices ask no questions (no `ask:` in its recipes)")
+        raise ValueError("--question-set bank: the domain's choices ask no questions (no `ask:` in its recipes)")
     return alternatives(f'"{q}"' for q in index.questions)
 
 
