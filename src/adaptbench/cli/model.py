@@ -6,6 +6,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from ..grammars.emit import QUESTION_SETS
 from ..install import install_hint
 from ..llm.tiny import WORD_SPLITS  # a constant: llm.tiny imports tokenizers only when it builds one
 
@@ -43,7 +44,7 @@ def add_rollout_options(p) -> None:
                    "for its questions); recorded with each episode, and `adapt eval` compares one budget at a time")
     g.add_argument("--budget", type=int, help="prompt token budget (oldest steps dropped first; default: the "
                    "model's context less the generation limits)")
-    g.add_argument("--question-set", choices=["free", "bank"], default="free",
+    g.add_argument("--question-set", choices=QUESTION_SETS, default="free",
                    help="what an Ask may say: free (any quoted text, the paper's; default) or bank (one of the "
                    "domain's own questions, the words oracle-ask uses: for a student too small to word one; "
                    "docs/grammar.md); recorded with each episode")

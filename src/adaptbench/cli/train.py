@@ -215,6 +215,7 @@ def _cmd_data(args) -> int:
 
 def add_data(train_sub) -> None:
     """Add `data` to the `train` group."""
+    from ..grammars.emit import QUESTION_SETS
     from ..harness.seeds import EVAL_SEEDS, TRAIN_SEEDS, seeds_text
 
     p = train_sub.add_parser("data", help="build Reflection-DPO's preference pairs",
@@ -241,7 +242,7 @@ def add_data(train_sub) -> None:
                    help="who proposes the question: the student from the reflection prompt (the paper); for a model "
                         "too small to write one, topics (a question about the preference the teacher named) or "
                         "choices (oracle-ask's question at the choice a^t realises, else as topics)")
-    p.add_argument("--question-set", choices=["free", "bank"], default="free",
+    p.add_argument("--question-set", choices=QUESTION_SETS, default="free",
                    help="what the student's own Ask may say as it plays: free (any quoted text; default) or bank "
                         "(one of the domain's questions, as `adapt rollout --question-set bank` decodes it)")
     p.add_argument("--teacher-model", help="an LLM teacher's model directory: the privileged teacher prompt "

@@ -17,6 +17,8 @@ from pathlib import Path
 
 from ...errors import AdaptError
 
+LAYOUTS = ("chat", "generation")  # TRL's conversational row layout, or the one the model plays in (`--layout`)
+
 LOSSES = ("sigmoid", "ipo", "sigmoid_norm", "sigmoid+sft")
 RELEASE_TARGETS = "q_proj,v_proj"
 
@@ -73,7 +75,7 @@ class TrainSettings:
                                   "whole assistant turn, `Action: ` and the end of turn included; default) or "
                                   "generation (the prompt ends with `Action: ` as when the model plays, the completion "
                                   "is the action and the end token: for a student that never writes the prefix)",
-                          str, ("chat", "generation"))
+                          str, LAYOUTS)
 
     def check(self) -> None:
         """SettingsError on a value out of range."""

@@ -28,9 +28,9 @@ from dataclasses import dataclass
 from ...llm.boundary import split_tail
 from ...llm.chat import encode, render
 from ...llm.prompts import ACTION_PREFIX, Prompt
+from .config import LAYOUTS
 
 IGNORE = -100  # label of a token the SFT loss skips
-LAYOUTS = ("chat", "generation")  # TRL's conversational layout, or the one the model plays in (`--layout`)
 
 
 @dataclass(frozen=True)

@@ -92,7 +92,7 @@ def prepare(method: str, s, tokenizer, spec=None, log=None, data: Data | None = 
     from . import rows as R
 
     data = data or read_data(method, s, log, tokenizer)
-    enc = Encoder(tokenizer, getattr(s, "layout", "chat"))
+    enc = Encoder(tokenizer, s.layout)
     left: dict = {}
     if method == "star-gate":
         from ...compiler import load_domain
