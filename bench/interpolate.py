@@ -2,6 +2,9 @@ r"""A model between two of the same shape: every weight (1 - t) * A + t * B.
 
     python bench/interpolate.py --a student --b runs/cook-read/model-200 --t 0.7 --out runs/interp-0.7
     python bench/interpolate.py --a student --b runs/cook-read/model-200 --t 1 --only 'self_attn' --out runs/attn
+    python bench/interpolate.py --a runs/base --b runs/dpo/merged --t 1.5 --out runs/dpo-x1.5
+
+A weight above 1 goes past B along the line from A (the fine-tuning's change scaled by t: task arithmetic).
 
 `--only REGEX` mixes only the weights whose names match (e.g. `self_attn`, `layers\.[23]\.`); every other
 weight stays A's (the fifteenth session's hybrids: one model's attention, the other's MLPs).
@@ -22,12 +25,13 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--a", required=True, help="a model name or directory (weight 1 - t)")
     ap.add_argument("--b", required=True, help="a model directory of the same shape (weight t)")
-    ap.add_argument("--t", type=float, required=True, help="B's weight, 0 to 1")
+    ap.add_argument("--t", type=float, required=True,
+                    help="B's weight: 0 to 1 between the models, above 1 (up to 3) past B along A -> B (task arithmetic)")
     ap.add_argument("--only", default="", help="a regular expression: mix only the weights it finds in their names")
     ap.add_argument("--out", required=True)
     args = ap.parse_args(argv)
-    if not 0.0 <= args.t <= 1.0:
-        ap.error(f"--t {args.t}: give a weight from 0 to 1")
+    if not 0.0 <= args.t <= 3.0:
+        ap.error(f"--t {args.t}: give a weight from 0 to 1 (between the models) or up to 3 (past B)")
 
     import re
 

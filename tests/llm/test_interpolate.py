@@ -71,3 +71,18 @@ def test_a_pattern_that_names_nothing_is_refused(tiny, shifted, tmp_path, capsys
     assert err.value.code == 2
     assert "matches no weight name" in capsys.readouterr().err
     assert not (tmp_path / "x").exists()
+
+
+def test_a_weight_above_one_goes_past_b(tiny, shifted, tmp_path):
+    out = tmp_path / "past"
+    assert _script().main(["--a", str(tiny), "--b", str(shifted), "--t", "1.5", "--out", str(out)]) == 0
+    a, past = _weights(tiny), _weights(out)
+    assert all((past[k] - a[k] - 1.5).abs().max() < 1e-5 for k in a)
+
+
+def test_a_weight_out_of_range_is_refused(tiny, shifted, tmp_path, capsys):
+    with pytest.raises(SystemExit) as err:
+        _script().main(["--a", str(tiny), "--b", str(shifted), "--t", "3.5", "--out", str(tmp_path / "x")])
+    assert err.value.code == 2
+    assert "up to 3" in capsys.readouterr().err
+    assert not (tmp_path / "x").exists()
