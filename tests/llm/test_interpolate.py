@@ -57,32 +57,22 @@ def test_only_mixes_the_named_weights(tiny, shifted, tmp_path):
         assert (mixed[k] - want).abs().max() < 1e-5, k
 
 
-def test_whole_interpolation_moves_every_weight(tiny, shifted, tmp_path):
-    out = tmp_path / "half"
-    assert _script().main(["--a", str(tiny), "--b", str(shifted), "--t", "0.5", "--out", str(out)]) == 0
+@pytest.mark.parametrize("t", [0.5, 1.5], ids=["between", "past-b"])
+def test_whole_interpolation_moves_every_weight(tiny, shifted, tmp_path, t):
+    """Between the models, and past B (a weight above 1 scales A -> B's change: task arithmetic)."""
+    out = tmp_path / "mixed"
+    assert _script().main(["--a", str(tiny), "--b", str(shifted), "--t", str(t), "--out", str(out)]) == 0
     a, mixed = _weights(tiny), _weights(out)
-    assert all((mixed[k] - a[k] - 0.5).abs().max() < 1e-5 for k in a)
+    assert all((mixed[k] - a[k] - t).abs().max() < 1e-5 for k in a)
 
 
-def test_a_pattern_that_names_nothing_is_refused(tiny, shifted, tmp_path, capsys):
+@pytest.mark.parametrize(("flags", "message"), [
+    (["--t", "1", "--only", "no_such_weight"], "matches no weight name"),
+    (["--t", "3.5"], "up to 3"),
+], ids=["pattern-names-nothing", "weight-out-of-range"])
+def test_bad_settings_are_refused_before_writing(tiny, shifted, tmp_path, capsys, flags, message):
     with pytest.raises(SystemExit) as err:
-        _script().main(["--a", str(tiny), "--b", str(shifted), "--t", "1", "--only", "no_such_weight",
-                        "--out", str(tmp_path / "x")])
+        _script().main(["--a", str(tiny), "--b", str(shifted), *flags, "--out", str(tmp_path / "x")])
     assert err.value.code == 2
-    assert "matches no weight name" in capsys.readouterr().err
-    assert not (tmp_path / "x").exists()
-
-
-def test_a_weight_above_one_goes_past_b(tiny, shifted, tmp_path):
-    out = tmp_path / "past"
-    assert _script().main(["--a", str(tiny), "--b", str(shifted), "--t", "1.5", "--out", str(out)]) == 0
-    a, past = _weights(tiny), _weights(out)
-    assert all((past[k] - a[k] - 1.5).abs().max() < 1e-5 for k in a)
-
-
-def test_a_weight_out_of_range_is_refused(tiny, shifted, tmp_path, capsys):
-    with pytest.raises(SystemExit) as err:
-        _script().main(["--a", str(tiny), "--b", str(shifted), "--t", "3.5", "--out", str(tmp_path / "x")])
-    assert err.value.code == 2
-    assert "up to 3" in capsys.readouterr().err
+    assert message in capsys.readouterr().err
     assert not (tmp_path / "x").exists()
