@@ -95,6 +95,7 @@ def _recorded_selection(args, domain, split, personas, tasks, seeds) -> dict:
             "split": split, "personas": list(personas), "tasks": list(tasks), "seeds": list(seeds),
             "interactions": args.interactions, "questions": args.questions, "eps1": args.eps1, "eps2": args.eps2,
             "max_length": args.max_length, "max_steps": args.max_steps, "skip_after_failures": args.skip_after_failures,
+            **({"skip_equivalent": True} if args.skip_equivalent else {}),
             "temperature": args.temperature, "sample_seed": args.sample_seed,
             **({"question_set": args.question_set} if args.question_set != "free" else {}),
             **({"backend": "openai", "model": _served_name(args)} if args.backend == "openai" else {})}
@@ -165,7 +166,7 @@ def _cmd_data(args) -> int:
     teacher = _teacher(args, domain, backend)
     settings = DataSettings(split, personas, tasks, seeds, args.interactions, args.questions, args.eps1, args.eps2,
                             args.max_length, args.batch, _workers(args.workers), args.max_steps,
-                            args.skip_after_failures)
+                            args.skip_after_failures, args.skip_equivalent)
     need = opening_tokens(domain, student_policy(backend, domain, questions=args.question_set), settings)
     if need > args.max_length:
         _fail(f"--max-length {args.max_length} cannot hold a row's opening prompt (instructions, layout, task) and "
@@ -204,6 +205,7 @@ def _cmd_data(args) -> int:
     summary["max_steps"] = settings.max_steps
     summary["max_length"] = settings.max_length
     summary["skip_after_failures"] = settings.skip_after_failures
+    summary["skip_equivalent"] = settings.skip_equivalent
     if args.backend == "openai":
         summary["backend"] = backend.config() | {"url": args.url}
     summary["selection"] = chosen  # a rerun of the same selection is done (`_already_built`)
@@ -262,6 +264,11 @@ def add_data(train_sub) -> None:
     p.add_argument("--skip-after-failures", type=positive, metavar="N",
                    help="skip (no pair) the steps after N failed actions in a row: this project's option, not the "
                         "paper's (off by default: the looping states a correction should come from get pairs)")
+    p.add_argument("--skip-equivalent", action="store_true",
+                   help="skip (no pair) the steps where the student's action, followed by the oracle's plan, ends "
+                        "the episode as well as the oracle's own action in no more steps (a step of the plan taken "
+                        "out of order): this project's option for the scripted teacher, which carries out one plan "
+                        "in one order, where the paper's LLM teacher would continue the student's own")
     p.add_argument("--device", default="cpu", help="where the local student (and an LLM teacher) run (default cpu)")
     p.add_argument("--backend", choices=["transformers", "openai"], default="transformers",
                    help="where the student generates and scores: its local model (default), or an OpenAI-compatible "

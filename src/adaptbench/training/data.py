@@ -36,6 +36,7 @@ from ..llm.prompts import ACTION_PREFIX
 from ..runtime.env import MAX_STEPS, make_env
 from .dataset import PairStore, mix_line, row_key
 from .decide import EPS1, EPS2, decide
+from .equivalent import equivalent
 from .ids import rejected_turn_ids
 from .prior import prior_summary
 from .relabel import (
@@ -79,6 +80,7 @@ class DataSettings:
     workers: int = 1
     max_steps: int = MAX_STEPS  # step budget per episode (the paper's 50)
     skip_after_failures: int | None = None  # skip steps after N failures in a row (ours, off by default)
+    skip_equivalent: bool = False  # skip steps whose a^s ends as well as a^t under the oracle (ours, `equivalent`)
 
 
 @dataclass
@@ -239,7 +241,23 @@ class Builder:
         n = self.s.skip_after_failures
         if n and r.failures >= n:
             return f"after_{n}_failures"
-        return "same_action" if same_action(self.parser, student, teacher) else None
+        if same_action(self.parser, student, teacher):
+            return "same_action"
+        if self.s.skip_equivalent and self._equivalent(r, student, teacher):
+            return "equivalent"
+        return None
+
+    def _equivalent(self, r: _Run, student: str, teacher: str) -> bool:
+        """With `skip_equivalent` and the scripted teacher: whether a^s (not a question) ends the episode as
+        well as a^t in no more steps, each followed by the teacher's plan (`equivalent`; teacher time)."""
+        policy = getattr(self.teacher, "policy", None)
+        if policy is None or not hasattr(policy, "next_step") or question_text(student) is not None:
+            return False
+        t0 = time.perf_counter()
+        try:
+            return equivalent(r.episode, student, teacher, policy)
+        finally:
+            self.times.add("teacher", t0)
 
     def _reflect(self, asks: list) -> list:
         t0 = time.perf_counter()
