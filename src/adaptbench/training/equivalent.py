@@ -7,8 +7,8 @@ student's history continues the student's own sub-recipe; the oracle needs telli
 episode on from its current state in a private copy (the episode's actions replayed on a fresh env of the
 same scene, persona and user), first the given action, then the teacher's plan to the end; `as_good` says
 whether the student's action ends at least as well (preferences satisfied and violated, components
-completed) in no more steps, counted past the episode's budget. `Builder` skips such steps as `equivalent` when `--skip-equivalent` is given
-(this project's option; the paper's teacher is an LLM and says nothing of it).
+completed) in no more steps, counted past the episode's budget. `Builder` skips such steps as `equivalent`
+when `--skip-equivalent` is given (this project's option; the paper's teacher is an LLM and says nothing of it).
 
     outcome(episode, "Move egg_0 to pan_0", teacher.policy)  # Outcome(satisfied=3, violated=1, ...)
 """
