@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from adaptbench.training.equivalent import Outcome, as_good, equivalent, outcome, replay
+from adaptbench.training.equivalent import Outcome, as_good, equivalent, fork, outcome
 
 from .conftest import SKIP_MODELS, play
 
@@ -18,10 +18,10 @@ def _started(domain, task, steps=(), persona="juan", seed=100):
     return ep, teacher
 
 
-def test_replay_is_the_same_state(domain):
+def test_fork_is_the_same_state(domain):
     ep, _ = play(domain, "tea_eggs", seed=100, steps=('Ask "Would you like toast on the side?"', "Look for bread",
                                                        "Look for kiwi", "Open unicorn_0"))
-    copy = replay(ep)
+    copy = fork(ep)
     trace = lambda e: [(x.text, x.ok, x.observation, x.reply) for x in e.env.world.trace]  # noqa: E731
     assert trace(copy) == trace(ep) and copy.view().made == ep.view().made and copy.id == ep.id
     assert copy.env.evaluate().as_dict() == ep.env.evaluate().as_dict()

@@ -35,10 +35,11 @@ class Outcome:
     steps: int
 
 
-def replay(episode: Episode, max_steps: int | None = None) -> Episode:
-    """A private copy of `episode` in the same state: a fresh env of the same scene, persona and user (and
-    budget, or `max_steps`), with every action of the episode's history stepped again (the simulator and the
-    offline user are deterministic). The copy keeps the episode's id, so a teacher's plan for it applies."""
+def fork(episode: Episode, max_steps: int | None = None) -> Episode:
+    """A private copy of a live `episode` in the same state (`training.replay` rebuilds a recorded one): a
+    fresh env of the same scene, persona and user (and budget, or `max_steps`), with every action of the
+    episode's history stepped again (the simulator and the offline user are deterministic). The copy keeps
+    the episode's id, so a teacher's plan for it applies."""
     env = episode.env
     copy = Env(env.domain, env.task.id, env.persona, env.scene.seed, full_scene=env.scene.full, user=env.answerer,
                max_steps=env.max_steps if max_steps is None else max_steps, index=env.index)
@@ -52,7 +53,7 @@ def outcome(episode: Episode, action: str, policy) -> Outcome:
     """The end of `episode` if `action` is taken now and the oracle `policy` (`OraclePolicy`, started on the
     episode) acts from then on, played past the episode's budget (by `EXTRA_STEPS` at most) so that a step
     wasted near the end still counts. `episode` itself is not changed."""
-    ep = replay(episode, episode.env.max_steps + EXTRA_STEPS)
+    ep = fork(episode, episode.env.max_steps + EXTRA_STEPS)
     ep.apply(Decision(action))
     while not ep.done:
         ep.apply(Decision(policy.next_step(ep.view())[0]))
