@@ -55,6 +55,7 @@ def train(method: str, s, spec=None, log=None) -> dict:
         torch.set_num_threads(s.threads)
     tok = load_tokenizer(s.model)
     p = prepare(method, s, tok, spec, log, data)
+    anchor = _anchor(s, tok, spec, p)
     scene_seeds(p, s)  # refuses data on the evaluation seeds unless --allow-eval-seeds
     note = report_long(p, s, out)
     if note:
@@ -69,12 +70,13 @@ def train(method: str, s, spec=None, log=None) -> dict:
             "the merged model and train.json")
         return _finish(method, s, p, out, tok, engine.from_checkpoint(resume, out), engine.IDLE)
     t0, c0 = time.perf_counter(), time.process_time()
-    trainer = engine.build(method, s, p.rows, tok, out, log)
+    trainer = engine.build(method, s, p.rows, tok, out, log, anchor)
     setup, setup_cpu = time.perf_counter() - t0, time.process_time() - c0
     if trainer.accelerator.is_main_process:
         write_settings(s, out)
     pre = bool(getattr(trainer.args, "precompute_ref_log_probs", False))
     log(f"train {method}: {len(p.rows)} rows, {planned} steps at batch {s.batch}"
+        + (f", {s.anchor_per_update} anchor episode(s) a forward of {len(anchor.records)}" if anchor else "")
         + (f", resuming from {resume}" if resume else "")
         + (f"; reference log-probs precomputed ({setup:.1f} s with loading)" if pre else ""))
     timing = engine.fit(trainer, resume, log)
@@ -82,8 +84,25 @@ def train(method: str, s, spec=None, log=None) -> dict:
     engine.save_adapter(trainer, out)  # every process (DeepSpeed/FSDP gather); the main one writes
     if not trainer.accelerator.is_main_process:  # the main process writes the outputs
         return {"method": recorded_method(method, s), **_counts(p), "steps": trainer.state.global_step, **timing}
+    if anchor is not None:
+        timing["anchor_episodes_not_replayed"] = anchor.skipped
     return _finish(method, s, p, out, tok, engine.Trained(trainer.state.global_step, trainer.state.log_history),
                    timing)
+
+
+def _anchor(s, tok, spec, p):
+    """The `--anchor` episodes' stream (None without it); its scene seeds join the data's (checked against the
+    evaluation's, recorded in train.json) and its size and personas are recorded with the rows' counts."""
+    if not s.anchor:
+        return None
+    from ...compiler import load_domain
+    from .anchor import AnchorStream, anchor_paths, check_anchor_seeds
+
+    stream = AnchorStream.load(load_domain(spec), anchor_paths(s.anchor), tok, s.seed)
+    check_anchor_seeds(stream, s)
+    p.seeds = tuple(sorted({*p.seeds, *stream.seeds()}))
+    p.left_out = {**p.left_out, "anchor_episodes": len(stream.records), "anchor_personas": stream.personas()}
+    return stream
 
 
 def _finish(method: str, s, p, out: Path, tok, trained, timing: dict) -> dict:

@@ -71,6 +71,13 @@ class TrainSettings:
     skip_bad_rows: bool = setting(False, "leave out the --data lines that are not usable rows (counted, reported "
                                          "and recorded in train.json) instead of stopping at the first (exit 2, "
                                          "naming its file:line)", bool)
+    anchor: str = setting(None, "a teacher's episodes trained beside the rows (adapt rollout records: JSONL files or "
+                                "directories, comma-separated; e.g. oracle-ask on training personas and scenes): each "
+                                "update adds --anchor-weight x the mean token loss of --anchor-per-update whole "
+                                "episodes, the loss on every action, so that longer training keeps the recipes "
+                                "(default: none, the paper's rows alone)")
+    anchor_per_update: int = setting(1, "anchor episodes per forward (default 1)", int)
+    anchor_weight: float = setting(1.0, "weight of the anchor episodes' loss (default 1.0)", float)
     layout: str = setting("chat", "how a row is laid out: chat (TRL's conversational layout: the completion is the "
                                   "whole assistant turn, `Action: ` and the end of turn included; default) or "
                                   "generation (the prompt ends with `Action: ` as when the model plays, the completion "
@@ -86,6 +93,8 @@ class TrainSettings:
             raise SettingsError(f"--max-steps must be at least 1 (got {self.max_steps})")
         if self.lr <= 0 or self.epochs <= 0:
             raise SettingsError("--lr and --epochs must be positive")
+        if self.anchor_per_update < 1 or self.anchor_weight < 0:
+            raise SettingsError("--anchor-per-update must be at least 1 and --anchor-weight not negative")
         if not 0 <= self.lora_dropout < 1:
             raise SettingsError(f"--lora-dropout must be in [0, 1) (got {self.lora_dropout})")
 

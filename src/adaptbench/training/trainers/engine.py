@@ -142,17 +142,26 @@ def _line(state, logs: dict, first: int, spent: float) -> str:
     return f"step {state.global_step}/{state.max_steps} {shown} ({spent:.0f} s, ~{left:.0f} s left)"
 
 
-def build(method: str, s, rows: list, tokenizer, out: Path, log):
+def build(method: str, s, rows: list, tokenizer, out: Path, log, anchor=None):
     """The TRL trainer of the method over the encoded rows (transformers' own printing of every log dict
-    replaced by `Progress`)."""
+    replaced by `Progress`); with `anchor` (an `anchor.AnchorStream`), each forward also trains that many
+    teacher episodes (`--anchor`)."""
     from transformers import PrinterCallback
 
-    trainer = _build(method, s, rows, tokenizer, out, log)
+    trainer = _build(method, s, rows, tokenizer, out, log, anchor)
     trainer.remove_callback(PrinterCallback)
     return trainer
 
 
-def _build(method: str, s, rows: list, tokenizer, out: Path, log):
+def _with_anchor(cls, s, anchor):
+    if anchor is None:
+        return cls
+    from .anchor import anchored
+
+    return anchored(cls, anchor, s.anchor_per_update, s.anchor_weight)
+
+
+def _build(method: str, s, rows: list, tokenizer, out: Path, log, anchor=None):
     import warnings
 
     os.environ.setdefault("TRL_EXPERIMENTAL_SILENCE", "1")
@@ -170,13 +179,13 @@ def _build(method: str, s, rows: list, tokenizer, out: Path, log):
             args = DPOConfig(**common, beta=s.beta, loss_type=s.loss.split("+"), precompute_ref_log_probs=pre,
                              precompute_ref_batch_size=max(s.batch, 8))
             data = Dataset.from_list([r.preference() for r in rows])
-            return _dpo_class()(model=model, args=args, train_dataset=data, processing_class=tokenizer,
+            return _with_anchor(_dpo_class(), s, anchor)(model=model, args=args, train_dataset=data, processing_class=tokenizer,
                                 peft_config=lora(s), callbacks=callbacks)
         from trl import SFTConfig, SFTTrainer
 
         args = SFTConfig(**common, packing=False)
         data = Dataset.from_list([r.supervised() for r in rows])
-        return SFTTrainer(model=model, args=args, train_dataset=data, processing_class=tokenizer,
+        return _with_anchor(SFTTrainer, s, anchor)(model=model, args=args, train_dataset=data, processing_class=tokenizer,
                           peft_config=lora(s), callbacks=callbacks)
     except ValueError as exc:  # peft's and TRL's refusals (no such target module, a bad setting)
         raise TrainError(f"train {method}: {' '.join(str(exc).split())[:400]}") from None
