@@ -403,3 +403,35 @@ def test_star_gate_on_a_teachers_trajectories_is_recorded_as_teacher_sft():
     assert recorded_method("star-gate", SimpleNamespace(agent="planner")) == "star-gate"
     assert recorded_method("star-gate", SimpleNamespace(agent="oracle,planner")) == "star-gate"
     assert recorded_method("dpo", SimpleNamespace(agent="oracle")) == "dpo"
+
+
+def test_first_corrections_keeps_each_episode_s_first_row_of_a_chosen_action():
+    from adaptbench.training.trainers.rows import action_of, first_corrections
+
+    m = _messages(2)
+    rows = [_row(4, "teacher", m, chosen="Pour water from sink_1 into kettle_0", rejected="Move egg_0 to pan_0"),
+            _row(2, "teacher", m, chosen="Pour water from sink_0 into kettle_0", rejected="Look for egg"),
+            _row(3, "question", m, chosen='Ask "Cheese?"'), _row(5, "question", m, chosen='Ask "Cheese?"'),
+            _row(6, "teacher", m, chosen="Look for bowl"),
+            dict(_row(7, "teacher", m, chosen="Pour water from sink_1 into kettle_0"), seed=1),  # another episode
+            dict(_row(8, "teacher", m, chosen="Pour water from sink_1 into kettle_0"), interaction=2)]
+    kept, left = first_corrections(rows, lambda r: action_of(r["chosen"]))
+    assert sorted(r["step"] for r in kept) == [2, 3, 6, 7, 8] and left == 2  # the kettle at step 2, the question at 3
+    by_teacher, _ = first_corrections(rows, lambda r: r["teacher_action"])  # no-reflection's a^t: one per episode
+    assert sorted(r["step"] for r in by_teacher) == [2, 7, 8]
+
+
+@SKIP_MODELS
+def test_dedupe_corrections_trains_on_the_first_rows_and_says_how_many_it_left_out(tiny, tmp_path):
+    from adaptbench.cli.main import main
+
+    m, data = _messages(3), tmp_path / "data"
+    _pairs(data, [_row(0, "teacher", m), _row(1, "teacher", m, rejected="Look for bread"),
+                  _row(2, "teacher", m, chosen="Look for egg"), _row(3, "question", m, chosen='Ask "Cheese?"')])
+    common = ["--data", str(data), "--model", str(tiny), "--max-steps", "1", "--batch", "1", "--threads", "1",
+              "--allow-eval-seeds"]
+    assert main(["train", "sft", *common, "--out", str(tmp_path / "all")]) == 0
+    assert main(["train", "sft", *common, "--out", str(tmp_path / "first"), "--dedupe-corrections"]) == 0
+    every, first = (json.loads((tmp_path / d / "train.json").read_text()) for d in ("all", "first"))
+    assert every["rows"] == 4 and "repeated_corrections_left_out" not in every
+    assert first["rows"] == 3 and first["repeated_corrections_left_out"] == 1

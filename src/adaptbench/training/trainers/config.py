@@ -78,6 +78,10 @@ class TrainSettings:
                                 "(default: none, the paper's rows alone)")
     anchor_per_update: int = setting(1, "anchor episodes per forward (default 1)", int)
     anchor_weight: float = setting(1.0, "weight of the anchor episodes' loss (default 1.0)", float)
+    dedupe_corrections: bool = setting(False, "keep only each episode's first row that chooses a given action "
+                                              "(instance numbers aside): a student that ignores a correction is given "
+                                              "it again at every later step, against its own other steps (default off: "
+                                              "the paper's Algorithm 1 keeps every step's row)", bool)
     layout: str = setting("chat", "how a row is laid out: chat (TRL's conversational layout: the completion is the "
                                   "whole assistant turn, `Action: ` and the end of turn included; default) or "
                                   "generation (the prompt ends with `Action: ` as when the model plays, the completion "

@@ -9,6 +9,7 @@ considered step, the trainable ones and the skipped ones with their reason).
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 from ...errors import AdaptError
@@ -123,3 +124,28 @@ def reached_rule(row: dict, no_gain: bool = True) -> bool:
 def no_reflection_rows(rows: list, enc: Encoder, no_gain: bool = True) -> list:
     """Table 2's "no Reflection" rows: a^t chosen over a^s at every step that reached the decision rule."""
     return [preference_row(enc, r, r["teacher_action"]) for r in rows if reached_rule(r, no_gain)]
+
+
+_INSTANCE = re.compile(r"_\d+\b")
+
+
+def correction(row: dict, chosen: str) -> tuple:
+    """What a row corrects, for `first_corrections`: its episode (persona, task, scene seed, split, interaction) and the
+    chosen action with instance numbers dropped (`sink_1` and `sink_0` are both the sink)."""
+    return (row.get("persona"), row.get("task"), row.get("seed"), row.get("split"), row.get("interaction"),
+            _INSTANCE.sub("", chosen.strip()))
+
+
+def first_corrections(rows: list, chosen_of) -> tuple:
+    """(the rows with only the first, by step, of each episode's rows that choose the same action; how many were
+    left out). A student that does not take a correction is given it again at every later step, each time
+    against whatever it did instead: the repeats weigh one correction by how long it was ignored, and their
+    rejected sides are the student's own other steps (`--dedupe-corrections`)."""
+    seen, out = set(), []
+    for r in sorted(rows, key=lambda r: r.get("step", 0)):
+        key = correction(r, chosen_of(r))
+        if key not in seen:
+            seen.add(key)
+            out.append(r)
+    kept = {id(r) for r in out}
+    return [r for r in rows if id(r) in kept], len(rows) - len(out)

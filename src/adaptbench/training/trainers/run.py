@@ -109,7 +109,7 @@ def prepare(method: str, s, tokenizer, spec=None, log=None, data: Data | None = 
                 "bad_rows_left_out": data.bad, "split": split_of(domain, records)}
         seeds = {r["seed"] for r in kept}
     else:
-        pairs = data.rows
+        pairs, repeats = _deduped(method, s, data.rows)
         build = {"dpo": R.dpo_rows, "sft": R.sft_rows,
                  "no-reflection": lambda p, e: R.no_reflection_rows(p, e, s.no_gain)}[method]
         try:
@@ -117,12 +117,30 @@ def prepare(method: str, s, tokenizer, spec=None, log=None, data: Data | None = 
         except (KeyError, TypeError, ValueError) as exc:  # a row without the dataset contract's fields
             raise R.DataError(f"--data {s.data}: a row of pairs.jsonl is malformed ({type(exc).__name__}: "
                               f"{exc}); rebuild it with `adapt train data`") from None
-        left = {"pairs": len(pairs) + data.bad, "bad_rows_left_out": data.bad}
+        left = {"pairs": len(data.rows) + data.bad, "bad_rows_left_out": data.bad}
+        if s.dedupe_corrections:
+            left["repeated_corrections_left_out"] = repeats
         seeds = {r.get("seed") for r in pairs}
     if not encoded:
         raise TrainError(f"--data {s.data}: no rows to train {method} on ({json.dumps(left)})")
     kept, long = check_lengths(encoded, s.max_length)
     return Prepared(kept, left, long, tuple(sorted(x for x in seeds if isinstance(x, int))))
+
+
+def _deduped(method: str, s, pairs: list) -> tuple:
+    """The pairs a method builds its rows from, and how many `--dedupe-corrections` left out (0 without it):
+    of the rows that reach the method's rule, each episode's first that chooses a given action."""
+    from . import rows as R
+
+    if not s.dedupe_corrections:
+        return pairs, 0
+    if method == "no-reflection":
+        used = [r for r in pairs if R.reached_rule(r, s.no_gain)]
+        kept, n = R.first_corrections(used, lambda r: r["teacher_action"])
+    else:
+        used = [r for r in pairs if r["kind"] in R.TRAINABLE]
+        kept, n = R.first_corrections(used, lambda r: R.action_of(r["chosen"]))
+    return kept, n
 
 
 def scene_seeds(p: Prepared, s) -> tuple:
