@@ -435,3 +435,13 @@ def test_dedupe_corrections_trains_on_the_first_rows_and_says_how_many_it_left_o
     every, first = (json.loads((tmp_path / d / "train.json").read_text()) for d in ("all", "first"))
     assert every["rows"] == 4 and "repeated_corrections_left_out" not in every
     assert first["rows"] == 3 and first["repeated_corrections_left_out"] == 1
+
+
+def test_star_gate_refuses_dedupe_corrections(tmp_path):
+    from adaptbench.training.trainers import METHODS
+    from adaptbench.training.trainers.config import SettingsError, load_settings
+
+    flags = {"data": "d", "model": "m", "out": str(tmp_path), "dedupe_corrections": True}
+    with pytest.raises(SettingsError, match="star-gate trains on rollouts"):
+        load_settings(METHODS["star-gate"], flags)
+    assert load_settings(METHODS["sft"], flags).dedupe_corrections

@@ -161,6 +161,9 @@ class StarGateSettings(TrainSettings):
         super().check()
         if not 0 < self.top <= 1:
             raise SettingsError(f"--top must be in (0, 1] (got {self.top})")
+        if self.dedupe_corrections:
+            raise SettingsError("--dedupe-corrections applies to pairs (dpo, sft, no-reflection); star-gate trains on "
+                                "rollouts, which hold no corrections")
 
 
 def flag(name: str) -> str:
