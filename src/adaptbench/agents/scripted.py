@@ -430,14 +430,14 @@ class OraclePolicy(ScriptedPolicy):
 
         The action: the plan re-executed from the view's known world, passing over each action the
         agent has already taken with success (the same action up to instance numbers and a move's
-        source, `_effect`): what is left of the plan in the state the agent reached."""
+        source, `step_effect`): what is left of the plan in the state the agent reached."""
         ex = self.executor(view)
-        done = Counter(_effect(t.action) for t in view.history if t.ok)
+        done = Counter(step_effect(t.action) for t in view.history if t.ok)
         steps, fb = ex.steps(), Feedback(True, "", view.seen)
         try:
             action = next(steps)
-            while action != "Declare Done" and done[_effect(action)] > 0:
-                done[_effect(action)] -= 1
+            while action != "Declare Done" and done[step_effect(action)] > 0:
+                done[step_effect(action)] -= 1
                 action = steps.send(fb)
         except StopIteration:
             return "Declare Done", ()
@@ -483,7 +483,7 @@ _SOURCE = re.compile(r"^(Move|Pour) (\S+) from \S+ (to|into) ")
 _INSTANCE = re.compile(r"_\d+\b")
 
 
-def _effect(action: str) -> str:
+def step_effect(action: str) -> str:
     """What an action does, for matching a plan's steps against the agent's: its text with instance
     numbers dropped (`egg_0` and `egg_2` are both an egg) and without the source of a `Move X from Y to
     Z` / `Pour X from Y into Z` (where an item came from does not change what the step did)."""

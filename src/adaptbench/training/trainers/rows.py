@@ -9,7 +9,6 @@ considered step, the trainable ones and the skipped ones with their reason).
 
 from __future__ import annotations
 
-import re
 from pathlib import Path
 
 from ...errors import AdaptError
@@ -126,14 +125,14 @@ def no_reflection_rows(rows: list, enc: Encoder, no_gain: bool = True) -> list:
     return [preference_row(enc, r, r["teacher_action"]) for r in rows if reached_rule(r, no_gain)]
 
 
-_INSTANCE = re.compile(r"_\d+\b")
-
-
 def correction(row: dict, chosen: str) -> tuple:
-    """What a row corrects, for `first_corrections`: its episode (persona, task, scene seed, split, interaction) and the
-    chosen action with instance numbers dropped (`sink_1` and `sink_0` are both the sink)."""
+    """What a row corrects, for `first_corrections`: its episode (persona, task, scene seed, split, interaction) and
+    what the chosen action does, as the oracle matches its plan's steps (`agents.scripted.step_effect`: instance
+    numbers and a move's source dropped; `sink_1` and `sink_0` are both the sink)."""
+    from ...agents.scripted import step_effect
+
     return (row.get("persona"), row.get("task"), row.get("seed"), row.get("split"), row.get("interaction"),
-            _INSTANCE.sub("", chosen.strip()))
+            step_effect(chosen))
 
 
 def first_corrections(rows: list, chosen_of) -> tuple:
