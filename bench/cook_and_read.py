@@ -13,6 +13,12 @@ faster for eight rows on a quiet core: bench/bench_shared_prefix.py). Every `--e
 the answer-use probe on the whole prompt (split 0's unseen personas, scene seed 0), appends a line to
 OUT/curve.jsonl and saves the model to OUT/model-STEP (for `adapt rollout --model` on the unseen personas,
 which measures the cooking). Not a shipped model: a measurement (docs/training.md).
+
+`--row-loss contrast` (the twentieth session) trains the rows as pairs instead: each side's prompt scores its
+own answer's action against the other answer's, -log sigmoid(beta x margin) (`contrast_terms`). A model that
+ignores the answer cannot lower it, and it leaves the actions' likelihoods to the episodes, where the
+likelihood of the rows (`sft`) pulls the student toward the rows' prompts. `--rows-per-update` still counts
+rows (two a pair); the prompts' shared opening runs once (`training.shared_prefix.prompt_action_logprobs`).
 """
 
 from __future__ import annotations
@@ -51,6 +57,45 @@ def update_loss(model, episodes: list, rows: list):
     return torch.stack(parts).mean()
 
 
+def pair_examples(rows: list, tokenizer) -> list:
+    """The answer rows as pairs for the answer-contrast loss: for each probe pair (two consecutive rows with
+    one key), its two prompts' token ids and its two actions' (each with EOS)."""
+    from adaptbench.llm.chat import render
+    from adaptbench.llm.prompts import Prompt
+
+    if len(rows) % 2:
+        raise SystemExit(f"{len(rows)} answer rows: an odd count cannot be pairs")
+    out = []
+    for a, b in zip(rows[::2], rows[1::2], strict=True):
+        if a["key"] != b["key"]:
+            raise SystemExit(f"answer rows out of pairs: {a['key']} is followed by {b['key']}")
+        prompts = [tokenizer(render(tokenizer, Prompt(tuple(r["messages"]), r.get("prefix", ""))),
+                             add_special_tokens=False)["input_ids"] for r in (a, b)]
+        actions = [tokenizer(r["action"], add_special_tokens=False)["input_ids"] + [tokenizer.eos_token_id]
+                   for r in (a, b)]
+        out.append((prompts, actions))
+    return out
+
+
+def contrast_terms(model, pairs: list, beta: float):
+    """The answer-contrast loss of each side of each pair: -log sigmoid(beta x (log p(own action | prompt) -
+    log p(the other answer's action | prompt))). Only acting on the answer lowers it: a model that ignores
+    the answer gains on one side what it loses on the other. Returns (the terms, how many sides prefer
+    their own action)."""
+    import torch
+    import torch.nn.functional as F
+
+    from adaptbench.training.shared_prefix import prompt_action_logprobs
+
+    terms, right = [], 0
+    for prompts, actions in pairs:
+        lp = prompt_action_logprobs(model, prompts, actions)
+        margins = torch.stack([lp[0, 0] - lp[0, 1], lp[1, 1] - lp[1, 0]])
+        right += int((margins.detach() > 0).sum())
+        terms += list(-F.logsigmoid(beta * margins))
+    return terms, right
+
+
 def episode_examples(domain, tok, paths: list) -> list:
     """The oracle's episodes as packed whole-prompt sequences (`training.pretrain.examples`)."""
     from adaptbench.training.pretrain import examples, read_records
@@ -73,6 +118,10 @@ def main(argv=None) -> int:
     ap.add_argument("--rows-per-update", type=int, default=4)
     ap.add_argument("--rows-context", choices=("full", "dialogue"), default="full",
                     help="answer rows on the whole prompt (default) or cut to their dialogue (answer_rows.CONTEXTS)")
+    ap.add_argument("--row-loss", choices=("sft", "contrast"), default="sft",
+                    help="sft: the answer's action's likelihood on each row (default); contrast: each side's own "
+                         "action against the other answer's (contrast_terms), which only reading lowers")
+    ap.add_argument("--beta", type=float, default=1.0, help="the contrast loss's scale on the log-prob margin")
     ap.add_argument("--lr", type=float, default=5e-4)
     ap.add_argument("--eval-every", type=int, default=100)
     ap.add_argument("--pairs", type=int, default=60, help="probe pairs (unseen personas, scene seed 0), whole prompts")
@@ -97,15 +146,22 @@ def main(argv=None) -> int:
     tok = AutoTokenizer.from_pretrained(path)
     model = AutoModelForCausalLM.from_pretrained(path, dtype=torch.float32)
     episodes = episode_examples(domain, tok, args.episodes)
-    rows = answer_examples(read_rows(args.rows), tok, args.rows_context)
+    if args.row_loss == "contrast":
+        if args.rows_context != "full" or args.rows_per_update % 2:
+            raise SystemExit("--row-loss contrast takes whole-prompt rows, an even --rows-per-update (two a pair)")
+        rows = pair_examples(read_rows(args.rows), tok)
+        per_update = args.rows_per_update // 2
+    else:
+        rows = answer_examples(read_rows(args.rows), tok, args.rows_context)
+        per_update = args.rows_per_update
     pairs = spread(build_pairs(domain, personas=args.personas.split(","), seeds=(0,)), args.pairs)
     print(f"{len(episodes)} episodes ({sum(len(i) for i, _ in episodes) / len(episodes):.0f} tokens each), "
-          f"{len(rows)} answer rows ({sum(len(i) for i, _ in rows) / len(rows):.0f} tokens each); "
-          f"{len(pairs)} probe pairs", flush=True)
+          f"{len(rows)} answer {'pairs' if args.row_loss == 'contrast' else 'rows'}; {len(pairs)} probe pairs",
+          flush=True)
     opt = torch.optim.AdamW(model.parameters(), lr=args.lr, weight_decay=0.0)
     rng = random.Random(args.seed)
     ep_batches = batches(len(episodes), args.episodes_per_update, rng)
-    row_batches = batches(len(rows), args.rows_per_update, rng)
+    row_batches = batches(len(rows), per_update, rng)
     curve = out / "curve.jsonl"
     done = [json.loads(line)["step"] for line in curve.read_text().splitlines()] if curve.is_file() else []
     if done:
@@ -126,16 +182,26 @@ def main(argv=None) -> int:
 
     evaluate(0, float("nan"))
     losses: list = []
+    sides = right = 0
     for step in range(1, args.steps + 1):
-        batch = [episodes[i] for i in next(ep_batches)] + [rows[i] for i in next(row_batches)]
+        eps, batch_rows = [episodes[i] for i in next(ep_batches)], [rows[i] for i in next(row_batches)]
         opt.zero_grad()
-        loss = update_loss(model, batch[:args.episodes_per_update], batch[args.episodes_per_update:])
+        if args.row_loss == "contrast":
+            terms, ok = contrast_terms(model, batch_rows, args.beta)
+            sides, right = sides + len(terms), right + ok
+            loss = torch.stack([model(input_ids=torch.tensor([i]), labels=torch.tensor([la])).loss
+                                for i, la in eps] + terms).mean()
+        else:
+            loss = update_loss(model, eps, batch_rows)
         loss.backward()
         torch.nn.utils.clip_grad_norm_(model.parameters(), 1.0)
         opt.step()
         losses.append(float(loss.detach()))
         if step % 10 == 0:
-            print(f"update {step}: loss {sum(losses[-10:]) / 10:.4f} ({time.perf_counter() - t0:.0f} s)", flush=True)
+            acc = f", {right}/{sides} sides prefer their own action" if sides else ""
+            print(f"update {step}: loss {sum(losses[-10:]) / 10:.4f}{acc} ({time.perf_counter() - t0:.0f} s)",
+                  flush=True)
+            sides = right = 0
         if step % args.eval_every == 0 or step == args.steps:
             evaluate(step, sum(losses[-50:]) / len(losses[-50:]))
     return 0

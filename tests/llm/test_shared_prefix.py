@@ -81,3 +81,39 @@ def test_a_sequence_without_a_target_is_refused(tiny):
     model = AutoModelForCausalLM.from_pretrained(tiny, dtype=torch.float32)
     with pytest.raises(ValueError, match="no labelled token"):
         shared_prefix_loss(model, [([5, 6, 7], [IGNORE] * 3)])
+
+
+def test_prompt_action_logprobs_are_those_of_whole_sequences(tiny):
+    """Two prompts that share an opening, three actions: each entry (and its gradient) is the summed
+    log-probability of the action scored after its prompt whole."""
+    import random
+
+    import torch
+    from transformers import AutoModelForCausalLM
+
+    from adaptbench.training.shared_prefix import prompt_action_logprobs
+
+    model = AutoModelForCausalLM.from_pretrained(tiny, dtype=torch.float32)
+    rng = random.Random(1)
+    head = [rng.randrange(5, 200) for _ in range(30)]
+    prompts = [head + [rng.randrange(5, 200) for _ in range(n)] for n in (6, 11)]
+    actions = [[rng.randrange(5, 200) for _ in range(n)] for n in (1, 4, 7)]
+    got = prompt_action_logprobs(model, prompts, actions)
+    for i, p in enumerate(prompts):
+        for j, a in enumerate(actions):
+            logp = model(input_ids=torch.tensor([p + a])).logits[0, len(p) - 1:-1].log_softmax(-1)
+            want = logp[torch.arange(len(a)), torch.tensor(a)].sum()
+            assert float(got[i, j].detach()) == pytest.approx(float(want.detach()), abs=1e-4)
+    model.zero_grad()
+    (got[0, 1] - got[1, 2]).backward()
+    shared = torch.cat([q.grad.flatten() for q in model.parameters() if q.grad is not None])
+    model.zero_grad()
+    whole = []
+    for p, a in ((prompts[0], actions[1]), (prompts[1], actions[2])):
+        logp = model(input_ids=torch.tensor([p + a])).logits[0, len(p) - 1:-1].log_softmax(-1)
+        whole.append(logp[torch.arange(len(a)), torch.tensor(a)].sum())
+    (whole[0] - whole[1]).backward()
+    plain = torch.cat([q.grad.flatten() for q in model.parameters() if q.grad is not None])
+    assert torch.allclose(shared, plain, atol=1e-5, rtol=1e-4)
+    with pytest.raises(ValueError):
+        prompt_action_logprobs(model, prompts, [[]])

@@ -76,3 +76,52 @@ def shared_prefix_loss(model, sequences, min_shared: int = 32):
     layers = _prefix_layers(model, torch, sequences[0][0][:start]) if start else ()
     losses = [_suffix_loss(model, torch, ids, labels, start, layers) for ids, labels in sequences]
     return torch.stack(losses).mean()
+
+
+def _extend(model, torch, ids: list, start: int, layers: tuple):
+    """Run `ids[start:]` after `layers` (the keys and values of `ids[:start]`): its logits, and the keys and
+    values of all of `ids` (gradients' history kept)."""
+    from transformers import DynamicCache
+
+    from ..llm.decode import cache_arg
+
+    dev = model.device
+    cache = DynamicCache(config=model.config)
+    for layer, (keys, values) in enumerate(layers):
+        cache.update(keys, values, layer)
+    logits = model(input_ids=torch.tensor([ids[start:]], device=dev),
+                   position_ids=torch.arange(start, len(ids), device=dev).unsqueeze(0),
+                   use_cache=True, **cache_arg(model, cache)).logits
+    return logits[0], tuple((layer.keys, layer.values) for layer in cache.layers)
+
+
+def _shared_run(seqs: list) -> int:
+    """How many leading ids all of `seqs` share."""
+    n = min(len(s) for s in seqs)
+    for s in seqs[1:]:
+        n = next((i for i in range(n) if s[i] != seqs[0][i]), n)
+    return n
+
+
+def prompt_action_logprobs(model, prompts: list, actions: list):
+    """A `len(prompts)` x `len(actions)` tensor: the summed log-probability of each action's token ids after
+    each prompt's, with gradients. The prompts' common opening runs once, each prompt's remainder once, and
+    each action after its prompt's keys and values: what scoring every prompt + action whole gives, at the
+    cost of the prompts alone (the answer-contrast loss of bench/cook_and_read.py)."""
+    import torch
+
+    if not prompts or not actions or any(not p for p in prompts) or any(not a for a in actions):
+        raise ValueError("every prompt and every action needs at least one token")
+    heads = [p[:-1] for p in prompts]
+    start = _shared_run(heads)
+    shared = _extend(model, torch, heads[0][:start], 0, ())[1] if start else ()
+    rows = []
+    for prompt, head in zip(prompts, heads, strict=True):
+        layers = _extend(model, torch, head, start, shared)[1] if len(head) > start else shared
+        row = []
+        for action in actions:
+            logits = _extend(model, torch, head + prompt[-1:] + action, len(head), layers)[0]
+            logp = logits[:-1].float().log_softmax(-1)
+            row.append(logp[torch.arange(len(action)), torch.tensor(action, device=logp.device)].sum())
+        rows.append(torch.stack(row))
+    return torch.stack(rows)
