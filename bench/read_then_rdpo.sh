@@ -28,8 +28,12 @@
 # QSET=bank decodes the student's questions from the domain's own (`--question-set bank`, docs/grammar.md) in
 # steps 5 and 7 (the sixteenth session: the student's free questions were garbled and off the task).
 # LAYOUT=generation lays the trainers' rows out as the student plays (`adapt train ... --layout generation`).
+# CONTRAST_STEPS=400 inserts two steps before the base (the twentieth session, "A reader that cooks"): step 4's
+# model (now base0) trained CONTRAST_STEPS more updates of the same episodes with the answer rows as pairs
+# (`bench/cook_and_read.py --row-loss contrast`, 4 + 4 pairs an update), then every weight CONTRAST_T (0.7) x that
+# model + the rest the shipped student's: the base of steps 5-8.
 # Settings by environment: AGENT, ORACLE_SEEDS, CUT_STEPS, READ_FROM, READ_STEPS, T, QSET, DPO_STEPS, LAYOUT,
-# EVAL_SEEDS, WORKERS, THREADS.
+# EVAL_SEEDS, WORKERS, THREADS, CONTRAST_STEPS, CONTRAST_T.
 # The fourteenth session's runs (docs/training.md, "Bases that ask on their own"):
 #     AGENT=oracle-ask T=0.9 ABLATIONS=1 bash bench/read_then_rdpo.sh runs/ask-rdpo
 #     AGENT=oracle-ask READ_FROM=student READ_STEPS=100 T=1.0 ABLATIONS=1 bash bench/read_then_rdpo.sh runs/cookask-rdpo
@@ -38,6 +42,9 @@
 #     AGENT=oracle-ask CUT_STEPS=1000 ORACLE_SEEDS=130-169 READ_STEPS=300 T=0.9 ABLATIONS=1 bash bench/read_then_rdpo.sh runs/many-rdpo
 # The sixteenth session's ("Questions chosen from the domain's own"; steps 1-4 linked in from runs/many-rdpo):
 #     AGENT=oracle-ask CUT_STEPS=1000 ORACLE_SEEDS=130-169 READ_STEPS=300 T=0.9 QSET=bank ABLATIONS=1 bash bench/read_then_rdpo.sh runs/bank-rdpo
+# The twentieth session's (steps 1-4 linked in from runs/many-rdpo, base0 = runs/bank-rdpo/base):
+#     AGENT=oracle-ask CUT_STEPS=1000 ORACLE_SEEDS=130-169 READ_STEPS=300 T=0.9 QSET=bank CONTRAST_STEPS=400 \
+#         CONTRAST_T=0.7 ABLATIONS=1 bash bench/read_then_rdpo.sh runs/contrast-rdpo
 set -u
 dir=${1:-runs/read-rdpo}
 mkdir -p "$dir/evals"
@@ -66,8 +73,21 @@ step read
 [ -d "$dir/read/model-$read_steps" ] || { rm -rf "$dir/read"; run python3 bench/cook_and_read.py --out "$dir/read" \
   --model "${READ_FROM:-$dir/rows/model}" --episodes "$dir/$agent.jsonl" --rows "$dir/rows/rows.jsonl" --steps "$read_steps" \
   --lr 5e-4 --threads "${THREADS:-1}" "${read[@]}"; }
-step base
-[ -d "$dir/base" ] || run python3 bench/interpolate.py --a student --b "$dir/read/model-$read_steps" --t "${T:-0.7}" --out "$dir/base"
+if [ -n "${CONTRAST_STEPS:-}" ]; then   # the twentieth session: the reader's reading sharpened, then its cooking restored
+  contrast_steps=$([ -n "${DRY:-}" ] && echo 2 || echo "$CONTRAST_STEPS")
+  step base0
+  [ -d "$dir/base0" ] || run python3 bench/interpolate.py --a student --b "$dir/read/model-$read_steps" --t "${T:-0.7}" --out "$dir/base0"
+  step contrast
+  [ -d "$dir/contrast/model-$contrast_steps" ] || { rm -rf "$dir/contrast"; run python3 bench/cook_and_read.py \
+    --out "$dir/contrast" --model "$dir/base0" --episodes "$dir/$agent.jsonl" --rows "$dir/rows/rows.jsonl" \
+    --steps "$contrast_steps" --row-loss contrast --rows-per-update 8 --lr 5e-4 --threads "${THREADS:-1}" "${read[@]}"; }
+  step base
+  [ -d "$dir/base" ] || run python3 bench/interpolate.py --a student --b "$dir/contrast/model-$contrast_steps" \
+    --t "${CONTRAST_T:-0.7}" --out "$dir/base"
+else
+  step base
+  [ -d "$dir/base" ] || run python3 bench/interpolate.py --a student --b "$dir/read/model-$read_steps" --t "${T:-0.7}" --out "$dir/base"
+fi
 step pairs
 run adapt train data --student "$dir/base" --split 0 --seeds 100 "${pairs[@]}" --max-steps 50 --batch 16 \
   --questions choices --question-set "$qset" --workers "${WORKERS:-2}" --out "$dir/pairs"
