@@ -34,31 +34,14 @@ def common_prefix(sequences) -> int:
 
 def _prefix_layers(model, torch, ids: list) -> tuple:
     """Per-layer (keys, values) of one pass over `ids`, their gradients' history kept."""
-    from transformers import DynamicCache
-
-    from ..llm.decode import cache_arg
-
-    cache = DynamicCache(config=model.config)
-    model(input_ids=torch.tensor([ids], device=model.device), use_cache=True, logits_to_keep=1,
-          **cache_arg(model, cache))
-    return tuple((layer.keys, layer.values) for layer in cache.layers)
+    return _extend(model, torch, ids, 0, (), logits_to_keep=1)[1]
 
 
 def _suffix_loss(model, torch, ids, labels, start: int, prefix_layers):
     """The mean loss over the labelled tokens of `ids[start:]`, run after the prefix's keys and values."""
-    from transformers import DynamicCache
-
-    from ..llm.decode import cache_arg
-
-    dev = model.device
-    cache = DynamicCache(config=model.config)
-    for layer, (keys, values) in enumerate(prefix_layers):  # a fresh cache a sequence: each appends its own
-        cache.update(keys, values, layer)
-    logits = model(input_ids=torch.tensor([ids[start:]], device=dev),
-                   position_ids=torch.arange(start, len(ids), device=dev).unsqueeze(0),
-                   use_cache=bool(start), **cache_arg(model, cache if start else None)).logits
-    targets = torch.tensor(labels[start + 1:], device=dev)
-    return torch.nn.functional.cross_entropy(logits[0, :-1].float(), targets, ignore_index=IGNORE)
+    logits = _extend(model, torch, ids, start, prefix_layers)[0]
+    targets = torch.tensor(labels[start + 1:], device=logits.device)
+    return torch.nn.functional.cross_entropy(logits[:-1].float(), targets, ignore_index=IGNORE)
 
 
 def shared_prefix_loss(model, sequences, min_shared: int = 32):
@@ -78,9 +61,10 @@ def shared_prefix_loss(model, sequences, min_shared: int = 32):
     return torch.stack(losses).mean()
 
 
-def _extend(model, torch, ids: list, start: int, layers: tuple):
-    """Run `ids[start:]` after `layers` (the keys and values of `ids[:start]`): its logits, and the keys and
-    values of all of `ids` (gradients' history kept)."""
+def _extend(model, torch, ids: list, start: int, layers: tuple, logits_to_keep: int = 0):
+    """Run `ids[start:]` after `layers` (the keys and values of `ids[:start]`; each call a fresh cache, so
+    `layers` can serve several continuations): its logits (the last `logits_to_keep`, 0: all), and the keys
+    and values of all of `ids` (gradients' history kept)."""
     from transformers import DynamicCache
 
     from ..llm.decode import cache_arg
@@ -91,7 +75,7 @@ def _extend(model, torch, ids: list, start: int, layers: tuple):
         cache.update(keys, values, layer)
     logits = model(input_ids=torch.tensor([ids[start:]], device=dev),
                    position_ids=torch.arange(start, len(ids), device=dev).unsqueeze(0),
-                   use_cache=True, **cache_arg(model, cache)).logits
+                   use_cache=True, logits_to_keep=logits_to_keep, **cache_arg(model, cache)).logits
     return logits[0], tuple((layer.keys, layer.values) for layer in cache.layers)
 
 
