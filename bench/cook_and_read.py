@@ -43,6 +43,13 @@ def batches(n_items: int, per_update: int, rng: random.Random):
         order = order[per_update:]
 
 
+def episode_losses(model, episodes: list) -> list:
+    """Each packed episode's mean token loss, run whole."""
+    import torch
+
+    return [model(input_ids=torch.tensor([ids]), labels=torch.tensor([labels])).loss for ids, labels in episodes]
+
+
 def update_loss(model, episodes: list, rows: list):
     """The mean of the sequences' mean token losses (each sequence weighs the same). The answer rows run
     after their shared system message (`training.shared_prefix`: 1.1-1.2x faster for whole-prompt rows); the
@@ -51,7 +58,7 @@ def update_loss(model, episodes: list, rows: list):
 
     from adaptbench.training.shared_prefix import shared_prefix_loss
 
-    parts = [model(input_ids=torch.tensor([ids]), labels=torch.tensor([labels])).loss for ids, labels in episodes]
+    parts = episode_losses(model, episodes)
     if rows:
         parts += [shared_prefix_loss(model, rows)] * len(rows)
     return torch.stack(parts).mean()
@@ -189,8 +196,7 @@ def main(argv=None) -> int:
         if args.row_loss == "contrast":
             terms, ok = contrast_terms(model, batch_rows, args.beta)
             sides, right = sides + len(terms), right + ok
-            loss = torch.stack([model(input_ids=torch.tensor([i]), labels=torch.tensor([la])).loss
-                                for i, la in eps] + terms).mean()
+            loss = torch.stack(episode_losses(model, eps) + terms).mean()
         else:
             loss = update_loss(model, eps, batch_rows)
         loss.backward()
