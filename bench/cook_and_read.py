@@ -14,6 +14,9 @@ the answer-use probe on the whole prompt (split 0's unseen personas, scene seed 
 OUT/curve.jsonl and saves the model to OUT/model-STEP (for `adapt rollout --model` on the unseen personas,
 which measures the cooking). Not a shipped model: a measurement (docs/training.md).
 
+`--mask-forced` (the twenty-second session) drops the loss on the question tokens a `bank` grammar forces
+(`training.forced_tokens`), where a student that never saw a question puts nearly all of its loss.
+
 `--row-loss contrast` (the twentieth session) trains the rows as pairs instead: each side's prompt scores its
 own answer's action against the other answer's, -log sigmoid(beta x margin) (`contrast_terms`). A model that
 ignores the answer cannot lower it, and it leaves the actions' likelihoods to the episodes, where the
@@ -113,6 +116,19 @@ def episode_examples(domain, tok, paths: list) -> list:
     return data
 
 
+def training_episodes(domain, tok, paths: list, mask: bool) -> list:
+    """The episodes' packed sequences; with `mask`, a bank question's forced tokens carry no loss."""
+    episodes = episode_examples(domain, tok, paths)
+    if not mask:
+        return episodes
+    from adaptbench.grammars.index import domain_questions
+    from adaptbench.training.forced_tokens import mask_examples
+
+    episodes, removed = mask_examples(episodes, tok, domain_questions(domain))
+    print(f"--mask-forced: {removed} forced question tokens carry no loss", flush=True)
+    return episodes
+
+
 def main(argv=None) -> int:
     """Train on a fixed mix of whole episodes and answer rows; probe and save as it goes."""
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -128,6 +144,9 @@ def main(argv=None) -> int:
     ap.add_argument("--row-loss", choices=("sft", "contrast"), default="sft",
                     help="sft: the answer's action's likelihood on each row (default); contrast: each side's own "
                          "action against the other answer's (contrast_terms), which only reading lowers")
+    ap.add_argument("--mask-forced", action="store_true",
+                    help="no loss on the tokens of a bank question that the bank forces (training.forced_tokens): "
+                         "the loss stays on Ask itself and where two questions part")
     ap.add_argument("--beta", type=float, default=1.0, help="the contrast loss's scale on the log-prob margin")
     ap.add_argument("--lr", type=float, default=5e-4)
     ap.add_argument("--eval-every", type=int, default=100)
@@ -152,7 +171,7 @@ def main(argv=None) -> int:
     path = resolve_model(args.model)
     tok = AutoTokenizer.from_pretrained(path)
     model = AutoModelForCausalLM.from_pretrained(path, dtype=torch.float32)
-    episodes = episode_examples(domain, tok, args.episodes)
+    episodes = training_episodes(domain, tok, args.episodes, args.mask_forced)
     if args.row_loss == "contrast":
         if args.rows_context != "full" or args.rows_per_update % 2:
             raise SystemExit("--row-loss contrast takes whole-prompt rows, an even --rows-per-update (two a pair)")
