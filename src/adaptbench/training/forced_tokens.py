@@ -13,7 +13,7 @@ choice to make: `Ask` itself (asking or acting), and each token where two bank q
 
 from __future__ import annotations
 
-IGNORE = -100  # label of a token the loss skips (`training.pretrain.IGNORE`)
+from .pretrain import IGNORE
 
 
 def question_trie(tokenizer, questions) -> dict:
