@@ -3,11 +3,11 @@
     python bench/ask_in_own_cooking.py --model student --personas juan,sarah --tasks all --seeds 130-131 \\
         --out runs/own-asks.jsonl [--batch 16] [--question-set bank]
 
-Every earlier way of teaching the shipped student to ask (fine-tuning on the oracle-ask agent's episodes,
-from forty scenes or three hundred) halved its cooking within 50 updates (docs/training.md, twenty-first
-session): those episodes are the oracle's cooking, step by step unlike the student's. This agent
-(`planner-oracle-asks`) writes episodes in which the question is the only new thing: the student (the
-planner prompt) acts at every step, except where the privileged oracle, looking at the same state, would
+Every earlier way of teaching the shipped student to ask fine-tuned it on the oracle-ask agent's episodes,
+the oracle's cooking step by step unlike the student's, and lost half its cooking within 50 updates
+(docs/training.md, twenty-first session; the twenty-second found the learning rate to blame for most of it).
+This agent (`planner-oracle-asks`) writes episodes in which the question is the only new thing: the student
+(the planner prompt) acts at every step, except where the privileged oracle, looking at the same state, would
 act on a choice that one of this persona's preferences decided. There the oracle's question for that
 choice comes first (each question once an episode, `OraclePolicy.questions`: the words oracle-ask uses),
 then the oracle's action that realises the choice; every other step is the student's own. An oracle action
@@ -34,7 +34,7 @@ class OwnCookingAsks(Policy):
     agent_kind = "model"
     name = AGENT
 
-    def __init__(self, backend, domain, agent: str = "planner", **options):
+    def __init__(self, backend, domain, **options):
         from adaptbench.agents.scripted import OraclePolicy
         from adaptbench.llm.policies import LLMPolicy
 

@@ -1,7 +1,7 @@
 """Teach a cook when to ask by training only the rows of the tokens that choose a question.
 
-    python bench/ask_rows.py --model student --episodes runs/own/episodes.jsonl --plain runs/plain.jsonl --out runs/own/R \\
-        [--steps 200] [--lr 1e-2]
+    python bench/ask_rows.py --model student --episodes runs/own/episodes.jsonl --plain runs/plain.jsonl \\
+        --out runs/own/R [--steps 200] [--lr 1e-2]
 
 The shipped student was cloned on episodes without questions, so for thousands of updates the softmax
 pushed the logit of `Ask` (the first token of every question) down at every step: on its own episodes with
@@ -11,8 +11,9 @@ under 2 and still cost a third of its dishes (docs/training.md, twenty-second se
 
 This trains nothing but the embedding rows (tied: input and output) of the tokens where a `bank` decoder
 chooses a question (`training.forced_tokens`: `Ask` itself and each token where two bank questions part)
-that the student does not also read or write while it cooks (`cooking_tokens`: none of `--plain`'s), with their own learning rate, on the episodes' whole-episode loss (forced question tokens masked). Every
-other weight is frozen, so where the student does not ask, its hidden states are those of the cook it was;
+that the student does not also read or write while it cooks (`cooking_tokens`: none of `--plain`'s), with
+their own learning rate, on the episodes' whole-episode loss (forced question tokens masked). Every other
+weight is frozen, so where the student does not ask, its hidden states are those of the cook it was:
 learning when to ask becomes a linear read-out of the cook's own state. Prints the loss and the `Ask`
 token's mean negative log-likelihood where the oracle asked as it goes. Not a shipped model: a measurement.
 """
@@ -25,8 +26,14 @@ import sys
 import time
 
 
+def ask_token(tok) -> int:
+    """The first token of every question action (`Ask `)."""
+    return tok('Ask "x"', add_special_tokens=False)["input_ids"][0]
+
+
 def question_rows(tok, questions) -> list:
-    """The token ids a `bank` decoder chooses among inside a question: the trie's branching children."""
+    """The token ids a `bank` decoder chooses among inside a question: `Ask` and the trie's branching
+    children."""
     from adaptbench.training.forced_tokens import question_trie
 
     rows, stack = set(), [question_trie(tok, questions)]
@@ -35,7 +42,7 @@ def question_rows(tok, questions) -> list:
         if len(node) > 1:  # a choice: every child is a row to train
             rows.update(node)
         stack.extend(node.values())
-    return sorted(rows | {tok('Ask "x"', add_special_tokens=False)["input_ids"][0]})
+    return sorted(rows | {ask_token(tok)})
 
 
 def cooking_tokens(plain: list) -> set:
@@ -47,12 +54,14 @@ def ask_nll(model, episodes: list, ask: int, eos: int) -> tuple:
     """(mean NLL of `Ask` where the episodes ask, how many such steps): the first token of each action."""
     import torch
 
+    from adaptbench.training.pretrain import IGNORE
+
     total, n = 0.0, 0
     with torch.no_grad():
         for ids, labels in episodes:
             lp = torch.log_softmax(model(input_ids=torch.tensor([ids])).logits[0, :-1], -1)
             for i in range(1, len(ids)):
-                if labels[i] == ask and labels[i - 1] in (-100, eos):
+                if labels[i] == ask and labels[i - 1] in (IGNORE, eos):
                     total, n = total - lp[i - 1, ask].item(), n + 1
     return total / max(n, 1), n
 
@@ -91,7 +100,7 @@ def main(argv=None) -> int:
     tok = AutoTokenizer.from_pretrained(path)
     model = AutoModelForCausalLM.from_pretrained(path, dtype=torch.float32)
     episodes = training_episodes(domain, tok, args.episodes, mask=True)
-    ask = tok('Ask "x"', add_special_tokens=False)["input_ids"][0]
+    ask = ask_token(tok)
     shared = cooking_tokens(episode_examples(domain, tok, args.plain))
     rows = [t for t in question_rows(tok, domain_questions(domain)) if t == ask or t not in shared]
     probe = episodes[:12]
@@ -105,7 +114,8 @@ def main(argv=None) -> int:
     opt = torch.optim.Adam([emb], lr=args.lr)
     print(f"{len(episodes)} episodes; training rows {tok.convert_ids_to_tokens(rows)}; "
           f"Ask NLL where the oracle asks: {ask_nll(model, probe, ask, tok.eos_token_id)[0]:.2f}", flush=True)
-    order, t0, losses = batches(len(episodes), args.episodes_per_update, random.Random(args.seed)), time.perf_counter(), []
+    order = batches(len(episodes), args.episodes_per_update, random.Random(args.seed))
+    t0, losses = time.perf_counter(), []
     for step in range(1, args.steps + 1):
         opt.zero_grad()
         loss = torch.stack(episode_losses(model, [episodes[i] for i in next(order)])).mean()
