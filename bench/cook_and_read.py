@@ -17,6 +17,10 @@ which measures the cooking). Not a shipped model: a measurement (docs/training.m
 `--mask-forced` (the twenty-second session) drops the loss on the question tokens a `bank` grammar forces
 (`training.forced_tokens`), where a student that never saw a question puts nearly all of its loss.
 
+`--anchor-kl W` (the twenty-fourth session) adds W x KL(start model || model) over the episodes' action
+tokens, the start model frozen (`anchored_episode_terms`): the answer pairs may then move only what leaves
+the cook's own choices where they were.
+
 `--row-loss contrast` (the twentieth session) trains the rows as pairs instead: each side's prompt scores its
 own answer's action against the other answer's, -log sigmoid(beta x margin) (`contrast_terms`). A model that
 ignores the answer cannot lower it, and it leaves the actions' likelihoods to the episodes, where the
@@ -51,6 +55,51 @@ def episode_losses(model, episodes: list) -> list:
     import torch
 
     return [model(input_ids=torch.tensor([ids]), labels=torch.tensor([labels])).loss for ids, labels in episodes]
+
+
+def anchored_episode_terms(model, anchor, episodes: list) -> tuple:
+    """Each packed episode's mean token loss, and its mean KL(anchor || model) over the labelled (action)
+    tokens: how far the model's next-token distribution has moved from the frozen start model's where the
+    student acts. The anchor runs without gradients."""
+    import torch
+    import torch.nn.functional as F
+
+    losses, kls = [], []
+    for ids, labels in episodes:
+        x, y = torch.tensor([ids]), torch.tensor([labels])
+        out = model(input_ids=x, labels=y)
+        with torch.no_grad():
+            ref = anchor(input_ids=x).logits
+        acts = y[0, 1:] != -100  # logits at t predict token t + 1
+        p_log = F.log_softmax(out.logits[0, :-1][acts], dim=-1)
+        ref_log = F.log_softmax(ref[0, :-1][acts], dim=-1)
+        kls.append(F.kl_div(p_log, ref_log, log_target=True, reduction="batchmean"))
+        losses.append(out.loss)
+    return losses, kls
+
+
+def contrast_update_loss(model, anchor, weight: float, episodes: list, pairs: list, beta: float) -> tuple:
+    """One update's loss under `--row-loss contrast`: the mean of the episodes' token losses and the pairs'
+    contrast terms, plus `weight` x the episodes' mean KL from `anchor` when there is one. Returns (the loss,
+    the sides that prefer their own action, the sides, the KL as a float: 0.0 without an anchor)."""
+    import torch
+
+    terms, right = contrast_terms(model, pairs, beta)
+    if anchor is None:
+        return torch.stack(episode_losses(model, episodes) + terms).mean(), right, len(terms), 0.0
+    ce, kls = anchored_episode_terms(model, anchor, episodes)
+    kl = torch.stack(kls).mean()
+    return torch.stack(ce + terms).mean() + weight * kl, right, len(terms), float(kl.detach())
+
+
+def frozen_anchor(path, args):
+    """The start model, frozen, for `--anchor-kl` (which needs the contrast loss and episodes to anchor on)."""
+    import torch
+    from transformers import AutoModelForCausalLM
+
+    if args.row_loss != "contrast" or not args.episodes_per_update:
+        raise SystemExit("--anchor-kl takes --row-loss contrast and at least one episode an update")
+    return AutoModelForCausalLM.from_pretrained(path, dtype=torch.float32).eval().requires_grad_(False)
 
 
 def update_loss(model, episodes: list, rows: list):
@@ -148,6 +197,8 @@ def main(argv=None) -> int:
                     help="no loss on the tokens of a bank question that the bank forces (training.forced_tokens): "
                          "the loss stays on Ask itself and where two questions part")
     ap.add_argument("--beta", type=float, default=1.0, help="the contrast loss's scale on the log-prob margin")
+    ap.add_argument("--anchor-kl", type=float, default=0.0,
+                    help="weight of KL(start model || model) on the episodes' action tokens (0: none)")
     ap.add_argument("--lr", type=float, default=5e-4)
     ap.add_argument("--eval-every", type=int, default=100)
     ap.add_argument("--pairs", type=int, default=60, help="probe pairs (unseen personas, scene seed 0), whole prompts")
@@ -184,6 +235,7 @@ def main(argv=None) -> int:
     print(f"{len(episodes)} episodes ({sum(len(i) for i, _ in episodes) / len(episodes):.0f} tokens each), "
           f"{len(rows)} answer {'pairs' if args.row_loss == 'contrast' else 'rows'}; {len(pairs)} probe pairs",
           flush=True)
+    anchor = frozen_anchor(path, args) if args.anchor_kl else None
     opt = torch.optim.AdamW(model.parameters(), lr=args.lr, weight_decay=0.0)
     rng = random.Random(args.seed)
     ep_batches = batches(len(episodes), args.episodes_per_update, rng)
@@ -209,13 +261,14 @@ def main(argv=None) -> int:
     evaluate(0, float("nan"))
     losses: list = []
     sides = right = 0
+    kl_seen: list = []
     for step in range(1, args.steps + 1):
         eps, batch_rows = [episodes[i] for i in next(ep_batches)], [rows[i] for i in next(row_batches)]
         opt.zero_grad()
         if args.row_loss == "contrast":
-            terms, ok = contrast_terms(model, batch_rows, args.beta)
-            sides, right = sides + len(terms), right + ok
-            loss = torch.stack(episode_losses(model, eps) + terms).mean()
+            loss, ok, n, kl = contrast_update_loss(model, anchor, args.anchor_kl, eps, batch_rows, args.beta)
+            sides, right = sides + n, right + ok
+            kl_seen += [kl] if anchor is not None else []
         else:
             loss = update_loss(model, eps, batch_rows)
         loss.backward()
@@ -224,6 +277,7 @@ def main(argv=None) -> int:
         losses.append(float(loss.detach()))
         if step % 10 == 0:
             acc = f", {right}/{sides} sides prefer their own action" if sides else ""
+            acc += f", KL to the start {sum(kl_seen[-10:]) / 10:.4f}" if kl_seen else ""
             print(f"update {step}: loss {sum(losses[-10:]) / 10:.4f}{acc} ({time.perf_counter() - t0:.0f} s)",
                   flush=True)
             sides = right = 0
