@@ -199,6 +199,8 @@ def main(argv=None) -> int:
     ap.add_argument("--beta", type=float, default=1.0, help="the contrast loss's scale on the log-prob margin")
     ap.add_argument("--anchor-kl", type=float, default=0.0,
                     help="weight of KL(start model || model) on the episodes' action tokens (0: none)")
+    ap.add_argument("--anchor-model", default="",
+                    help="the model --anchor-kl holds to (default --model; give the first start to continue a run)")
     ap.add_argument("--lr", type=float, default=5e-4)
     ap.add_argument("--eval-every", type=int, default=100)
     ap.add_argument("--pairs", type=int, default=60, help="probe pairs (unseen personas, scene seed 0), whole prompts")
@@ -235,7 +237,8 @@ def main(argv=None) -> int:
     print(f"{len(episodes)} episodes ({sum(len(i) for i, _ in episodes) / len(episodes):.0f} tokens each), "
           f"{len(rows)} answer {'pairs' if args.row_loss == 'contrast' else 'rows'}; {len(pairs)} probe pairs",
           flush=True)
-    anchor = frozen_anchor(path, args) if args.anchor_kl else None
+    anchor = frozen_anchor(resolve_model(args.anchor_model) if args.anchor_model else path, args) \
+        if args.anchor_kl else None
     opt = torch.optim.AdamW(model.parameters(), lr=args.lr, weight_decay=0.0)
     rng = random.Random(args.seed)
     ep_batches = batches(len(episodes), args.episodes_per_update, rng)
