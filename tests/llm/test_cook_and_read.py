@@ -42,8 +42,8 @@ def test_the_anchor_is_zero_where_nothing_moved(tiny):
     model, anchor = _models(tiny)
     losses, kls = _script().anchored_episode_terms(model, anchor, [_episode()])
     assert len(losses) == len(kls) == 1
-    assert abs(float(kls[0])) < 1e-6
-    assert float(losses[0]) > 0
+    assert abs(float(kls[0].detach())) < 1e-6
+    assert float(losses[0].detach()) > 0
 
 
 def test_the_anchor_sees_only_the_action_tokens(tiny):
@@ -53,10 +53,10 @@ def test_the_anchor_sees_only_the_action_tokens(tiny):
     with torch.no_grad():
         model.lm_head.weight.mul_(3.0)  # tied: every next-token distribution moves
     ids, labels = _episode()
-    kl_action = float(_script().anchored_episode_terms(model, anchor, [(ids, labels)])[1][0])
+    kl_action = float(_script().anchored_episode_terms(model, anchor, [(ids, labels)])[1][0].detach())
     assert kl_action > 1e-4
     more = [-100] * 5 + ids[5:]  # more tokens labelled: a different mean
-    kl_more = float(_script().anchored_episode_terms(model, anchor, [(ids, more)])[1][0])
+    kl_more = float(_script().anchored_episode_terms(model, anchor, [(ids, more)])[1][0].detach())
     assert abs(kl_more - kl_action) > 1e-7
     grads = _script().anchored_episode_terms(model, anchor, [(ids, labels)])[1][0]
     grads.backward()
