@@ -3,6 +3,7 @@ only, and is nothing where the model has not moved."""
 
 from __future__ import annotations
 
+import functools
 import importlib.util
 import sys
 from pathlib import Path
@@ -13,6 +14,7 @@ pytestmark = SKIP_MODELS
 BENCH = Path(__file__).resolve().parents[2] / "bench"
 
 
+@functools.cache
 def _script():
     """The bench script as a module (it imports its neighbour `answer_context`)."""
     sys.path.insert(0, str(BENCH))
