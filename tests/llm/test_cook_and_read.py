@@ -60,7 +60,7 @@ def test_the_anchor_sees_only_the_action_tokens(tiny):
     more = [-100] * 5 + ids[5:]  # more tokens labelled: a different mean
     kl_more = float(_script().anchored_episode_terms(model, anchor, [(ids, more)])[1][0].detach())
     assert abs(kl_more - kl_action) > 1e-7
-    grads = _script().anchored_episode_terms(model, anchor, [(ids, labels)])[1][0]
-    grads.backward()
+    kl = _script().anchored_episode_terms(model, anchor, [(ids, labels)])[1][0]
+    kl.backward()
     assert all(p.grad is None for p in anchor.parameters())
     assert any(p.grad is not None and p.grad.abs().sum() > 0 for p in model.parameters())
