@@ -131,6 +131,26 @@ def _blanked(side):
     return replace(side, prompt=Prompt(msgs, side.prompt.prefix))
 
 
+def test_pairs_by_kind(domain, pairs):
+    """A pair whose actions differ only in instance numbers is an object choice, any other a named one, and the
+    shares by kind add up to the whole."""
+    from dataclasses import replace
+
+    from adaptbench.llm.probe import KINDS, probe
+
+    pair = pairs[0]
+    obj = replace(pair, a=replace(pair.a, action="Move pan_1 to stove_0"), b=replace(pair.b, action="Move pan_0 to stove_0"))
+    named = replace(pair, a=replace(pair.a, action="Look for almond_milk"), b=replace(pair.b, action="Look for milk"))
+    assert (obj.kind, named.kind) == ("object", "named")
+    mixed = [obj, named, named]
+    result = probe(_follower(mixed), mixed)
+    parts = result.by_kind()
+    assert list(parts) == list(KINDS) and [r.pairs for r in parts.values()] == [2, 1]
+    assert sum(r.prompts_followed for r in parts.values()) == result.prompts_followed == 6
+    summary = result.summary()
+    assert summary["by_kind"]["object"]["pairs"] == 1 and "by_kind" not in summary["by_kind"]["named"]
+
+
 def test_spread_keeps_every_part():
     from adaptbench.llm.probe import spread
 
@@ -151,6 +171,8 @@ def test_cli_json_and_table(tiny, capsys):
     assert main(args) == 0
     lines = capsys.readouterr().out.splitlines()
     assert lines[1].startswith("model") and lines[2].startswith(str(tiny)) and "50.0%" in lines[2]
+    assert {k for k in row["by_kind"]} <= {"named", "object"} and sum(p["pairs"] for p in row["by_kind"].values()) == 3
+    assert all(line.startswith("  ") and "choices" in line for line in lines[3:])
 
 
 def test_cli_unknown_model_is_one_line(capsys, tmp_path):

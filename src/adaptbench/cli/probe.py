@@ -39,7 +39,7 @@ def _score(args, model: str, pairs: list) -> dict:
         result = probe(backend_scorer(backend), pairs, lambda done, total: bar.update())
     out = {"model": model, **result.summary()}
     if args.verbose:
-        out["per_pair"] = [{"pair": s.pair.key(), "step": s.pair.step, "question": s.pair.question,
+        out["per_pair"] = [{"pair": s.pair.key(), "kind": s.pair.kind, "step": s.pair.step, "question": s.pair.question,
                             "answer_a": s.pair.a.answer, "action_a": s.pair.a.action,
                             "answer_b": s.pair.b.answer, "action_b": s.pair.b.action,
                             "under_a": list(s.under_a), "under_b": list(s.under_b),
@@ -80,6 +80,8 @@ def _cmd_answers(args) -> int:
     print(HEADER)
     for row in rows:
         print(_line(row["model"], row))
+        for kind, part in row.get("by_kind", {}).items():
+            print(_line(f"  {kind} choices", part))
         for p in row.get("per_pair", ()):
             mark = "".join("+" if f else "-" for f in (p["follows_a"], p["follows_b"]))
             print(f"  {mark} {p['pair']} @{p['step']}: {p['action_a']!r} | {p['action_b']!r}")

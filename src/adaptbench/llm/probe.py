@@ -38,6 +38,12 @@ from .prompts import Prompt, PromptBuilder
 PLACES = ("recipe", "start")
 IGNORING_SHARE = 0.5  # the share of prompts a model that ignores answers follows (exactly one of each pair)
 IGNORING_PAIRS = 0.0  # the share of pairs it follows under both answers
+# What following an answer takes, by how the pair's two actions differ: "named", they name different things
+# (`Look for almond_milk` / `Look for milk`: the answer's own words lead to the action); "object", they differ
+# only in which instance of a thing they use (`Move pan_1 to stove_0` / `Move pan_0 to stove_0`: the model must
+# find in an earlier observation which instance the answer describes, `pan_1 (cast iron pan)`)
+KINDS = ("named", "object")
+_INSTANCE = re.compile(r"_\d+\b")
 
 
 @dataclass(frozen=True)
@@ -65,6 +71,11 @@ class Pair:
     step: int
     a: Side
     b: Side
+
+    @property
+    def kind(self) -> str:
+        """"object" when the two actions differ only in instance numbers, else "named" (`KINDS`)."""
+        return "object" if _INSTANCE.sub("", self.a.action) == _INSTANCE.sub("", self.b.action) else "named"
 
     def key(self) -> str:
         """What names the pair in reports: task/choice/persona.preference vs persona.preference/seed."""
@@ -385,12 +396,27 @@ class ProbeResult:
         """The share of pairs that follow both answers (ignoring answers: 0%)."""
         return self.pairs_followed / self.pairs if self.pairs else 0.0
 
-    def summary(self) -> dict:
-        """The figures as JSON-ready values."""
-        return {"pairs": self.pairs, "share": self.share, "share_se": self.share_se, "ignoring_share": IGNORING_SHARE,
-                "pair_share": self.pair_share, "ignoring_pair_share": IGNORING_PAIRS,
-                "prompts_followed": self.prompts_followed, "pairs_followed": self.pairs_followed,
-                "mean_shift": self.mean_shift}
+    def by_kind(self) -> dict:
+        """The result over each kind of pair that occurs (`Pair.kind`), in `KINDS` order."""
+        return {k: result_of([s for s in self.scores if s.pair.kind == k])
+                for k in KINDS if any(s.pair.kind == k for s in self.scores)}
+
+    def summary(self, kinds: bool = True) -> dict:
+        """The figures as JSON-ready values; with `kinds`, the same figures by kind of pair under "by_kind"."""
+        out = {"pairs": self.pairs, "share": self.share, "share_se": self.share_se, "ignoring_share": IGNORING_SHARE,
+               "pair_share": self.pair_share, "ignoring_pair_share": IGNORING_PAIRS,
+               "prompts_followed": self.prompts_followed, "pairs_followed": self.pairs_followed,
+               "mean_shift": self.mean_shift}
+        if kinds and self.scores:
+            out["by_kind"] = {k: r.summary(kinds=False) for k, r in self.by_kind().items()}
+        return out
+
+
+def result_of(scores) -> ProbeResult:
+    """The shares over a list of `PairScore`s."""
+    n = len(scores)
+    return ProbeResult(n, sum(s.follows_a + s.follows_b for s in scores), sum(s.follows_a and s.follows_b for s in scores),
+                       sum(s.shift for s in scores) / n if n else 0.0, tuple(scores))
 
 
 def probe(scorer: Scorer, pairs, progress=None) -> ProbeResult:
@@ -401,9 +427,7 @@ def probe(scorer: Scorer, pairs, progress=None) -> ProbeResult:
         scores.append(PairScore(pair, tuple(scorer(pair.a.prompt, actions)), tuple(scorer(pair.b.prompt, actions))))
         if progress is not None:
             progress(i + 1, len(pairs))
-    n = len(scores)
-    return ProbeResult(n, sum(s.follows_a + s.follows_b for s in scores), sum(s.follows_a and s.follows_b for s in scores),
-                       sum(s.shift for s in scores) / n if n else 0.0, tuple(scores))
+    return result_of(scores)
 
 
 def backend_scorer(backend) -> Scorer:
