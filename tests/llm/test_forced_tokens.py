@@ -66,3 +66,48 @@ def test_masking_an_episode_keeps_every_other_label(domain, backend):
     for s in rec["steps"]:
         if not s["action"].startswith("Ask "):
             assert s["action"] in text
+
+
+def test_a_completion_keeps_all_but_the_forced_question_tokens(domain, backend):
+    """In a trainer's completion (`Action: `, the action, the end of turn) only a bank question's forced tokens
+    are skipped: the prefix, `Ask`, the tokens where questions part and the template's own tokens keep their loss."""
+    from adaptbench.grammars.index import domain_questions
+    from adaptbench.training.forced_tokens import completion_keep, forced, question_trie
+
+    tok, questions = backend.tokenizer, domain_questions(domain)
+    trie, eos = question_trie(tok, questions), tok.eos_token_id
+    prefix = tok("Action: ", add_special_tokens=False)["input_ids"]
+    for q in questions[:5]:
+        action = tok(f'Ask "{q}"', add_special_tokens=False)["input_ids"] + [eos]
+        keep = completion_keep(prefix + action + [7], trie, eos)
+        assert keep[:len(prefix)] == (1,) * len(prefix) and keep[-1] == 1
+        assert list(keep[len(prefix):-1]) == [0 if f else 1 for f in forced(trie, action)]
+        assert 0 in keep
+    look = prefix + tok("Look for bowl", add_special_tokens=False)["input_ids"] + [eos]
+    assert completion_keep(look, trie, eos) == (1,) * len(look)
+
+
+def test_dpo_and_sft_rows_carry_the_mask(domain, backend):
+    """`mask_forced_rows` marks both completions; the SFT row's labels skip the masked tokens and the DPO
+    collator's completion mask is 0 exactly there, for the chosen and the rejected sequence."""
+    from adaptbench.grammars.index import domain_questions
+    from adaptbench.training.trainers.encode import IGNORE, Encoded
+    from adaptbench.training.trainers.engine import keep_mask_collator
+    from adaptbench.training.trainers.rows import mask_forced_rows
+
+    tok = backend.tokenizer
+    eos = tok.eos_token_id
+    ask = tuple(tok(f'Ask "{domain_questions(domain)[0]}"', add_special_tokens=False)["input_ids"] + [eos])
+    look = tuple(tok("Look for bowl", add_special_tokens=False)["input_ids"] + [eos])
+    rows = [Encoded(("juan", "eggs", 100, 1, 0), (5, 6, 7), ask, look), Encoded(("juan", "eggs", 100, 1, 1), (5, 6), look, ask)]
+    masked, skipped = mask_forced_rows(rows, tok, domain_questions(domain))
+    assert skipped == 2 * masked[0].chosen_keep.count(0) > 0
+    assert masked[0].rejected_keep == (1,) * len(look) and masked[1].rejected_keep == masked[0].chosen_keep
+    labels = masked[0].supervised()["labels"]
+    assert labels[:3] == [IGNORE] * 3
+    assert [x == IGNORE for x in labels[3:]] == [k == 0 for k in masked[0].chosen_keep]
+    batch = keep_mask_collator(tok.pad_token_id)([r.preference() for r in masked])
+    cm = batch["completion_mask"].tolist()
+    assert cm[0][3:3 + len(ask)] == list(masked[0].chosen_keep) and cm[2][3:3 + len(look)] == [1] * len(look)
+    assert cm[1][2:2 + len(look)] == [1] * len(look) and cm[3][2:2 + len(ask)] == list(masked[1].rejected_keep)
+    assert all(x == 0 for row, p in zip(cm, (3, 2, 3, 2), strict=True) for x in row[:p])

@@ -445,3 +445,22 @@ def test_star_gate_refuses_dedupe_corrections(tmp_path):
     with pytest.raises(SettingsError, match="star-gate trains on rollouts"):
         load_settings(METHODS["star-gate"], flags)
     assert load_settings(METHODS["sft"], flags).dedupe_corrections
+
+
+@SKIP_MODELS
+def test_mask_forced_trains_and_says_how_many_tokens_it_skipped(tiny, tmp_path, domain):
+    """`--mask-forced`: DPO and SFT train with a bank question's forced tokens out of the loss, and train.json
+    counts them; the rows and their order are the same as without it."""
+    from adaptbench.cli.main import main
+    from adaptbench.grammars.index import domain_questions
+
+    m, data = _messages(3), tmp_path / "data"
+    question = f'Ask "{domain_questions(domain)[0]}"'
+    _pairs(data, [_row(0, "question", m, chosen=question), _row(1, "teacher", m)])
+    common = ["--data", str(data), "--model", str(tiny), "--max-steps", "1", "--batch", "2", "--threads", "1",
+              "--allow-eval-seeds", "--mask-forced"]
+    for method in ("dpo", "sft"):
+        assert main(["train", method, *common, "--out", str(tmp_path / method)]) == 0
+        r = json.loads((tmp_path / method / "train.json").read_text())
+        assert r["rows"] == 2 and r["forced_tokens_masked"] > 5
+        assert json.loads((tmp_path / method / "settings.json").read_text())["mask_forced"] is True

@@ -40,6 +40,36 @@ def forced(trie: dict, action: list) -> list:
     return out
 
 
+def completion_keep(ids, trie: dict, eos_id: int) -> tuple:
+    """For a completion's ids (`Action: `, the action, the end of turn, as the trainers lay rows out), 1 at
+    every token the loss should score and 0 at each token of a bank question that the bank forces (`forced`);
+    all 1 when the completion holds no whole bank question."""
+    ids = list(ids)
+    for start, t in enumerate(ids):
+        if t in trie:
+            flags = _question_at(ids[start:], trie, eos_id)
+            if flags is not None:
+                keep = [1] * len(ids)
+                for i, f in enumerate(flags):
+                    keep[start + i] = 0 if f else 1
+                return tuple(keep)
+    return (1,) * len(ids)
+
+
+def _question_at(ids: list, trie: dict, eos_id: int) -> list | None:
+    """`forced` flags of a whole bank question at the start of `ids` (up to its EOS, or up to where the
+    template's own end of turn follows a finished question), or None when none starts there."""
+    node, flags = trie, []
+    for i, t in enumerate(ids):
+        if t not in node:
+            return flags if eos_id in node else None
+        flags.append(i > 0 and len(node) == 1)
+        node = node[t]
+        if t == eos_id:
+            return flags
+    return flags if eos_id in node else None
+
+
 def action_spans(labels: list, eos_id: int) -> list:
     """(start, end) of each action in a sequence's labels: a run of labelled tokens up to and with its EOS."""
     spans, start = [], None

@@ -82,6 +82,11 @@ class TrainSettings:
                                               "(instance numbers aside): a student that ignores a correction is given "
                                               "it again at every later step, against its own other steps (default off: "
                                               "the paper's Algorithm 1 keeps every step's row)", bool)
+    mask_forced: bool = setting(False, "no loss on the tokens of a bank question that the bank forces (after `Ask` "
+                                       "and the tokens where two of the domain's questions part): under "
+                                       "`--question-set bank` decoding they have probability 1, and a student that "
+                                       "never asked spends ~200 nats a question on them, nearly all of a question "
+                                       "row's gradient (default off: the paper scores whole completions)", bool)
     layout: str = setting("chat", "how a row is laid out: chat (TRL's conversational layout: the completion is the "
                                   "whole assistant turn, `Action: ` and the end of turn included; default) or "
                                   "generation (the prompt ends with `Action: ` as when the model plays, the completion "

@@ -44,6 +44,8 @@ class Encoded:
     rejected: tuple | None = None
     truncated: bool = False
     generated_rejected: bool = False
+    chosen_keep: tuple | None = None    # per completion token, 0 where the loss skips it (`--mask-forced`)
+    rejected_keep: tuple | None = None
 
     @property
     def length(self) -> int:
@@ -51,13 +53,17 @@ class Encoded:
         return len(self.prompt) + max(len(self.chosen), len(self.rejected or ()))
 
     def preference(self) -> dict:
-        """The row as TRL's DPO collator takes it."""
-        return {"prompt_ids": list(self.prompt), "chosen_ids": list(self.chosen), "rejected_ids": list(self.rejected)}
+        """The row as TRL's DPO collator takes it; with keep masks, as `KeepMaskCollator` takes it."""
+        out = {"prompt_ids": list(self.prompt), "chosen_ids": list(self.chosen), "rejected_ids": list(self.rejected)}
+        if self.chosen_keep is not None:
+            out |= {"chosen_keep": list(self.chosen_keep), "rejected_keep": list(self.rejected_keep)}
+        return out
 
     def supervised(self) -> dict:
-        """The row as TRL's SFT collator takes it (labels: the completion only)."""
+        """The row as TRL's SFT collator takes it (labels: the completion only, less what `chosen_keep` skips)."""
+        keep = self.chosen_keep or (1,) * len(self.chosen)
         return {"input_ids": list(self.prompt + self.chosen),
-                "labels": [IGNORE] * len(self.prompt) + list(self.chosen)}
+                "labels": [IGNORE] * len(self.prompt) + [t if k else IGNORE for t, k in zip(self.chosen, keep, strict=True)]}
 
 
 class Encoder:

@@ -96,11 +96,15 @@ def load_model(s):
     return AutoModelForCausalLM.from_pretrained(s.model, dtype=torch.bfloat16 if bf16 else torch.float32)
 
 
+KEEP = ("chosen_keep", "rejected_keep")  # per completion token, 0 where the loss skips it (`--mask-forced`)
+
+
 def _dpo_class():
     from trl import DPOTrainer
 
     class TokenizedDPOTrainer(DPOTrainer):
-        """DPOTrainer over rows already in ids (prompt_ids, chosen_ids, rejected_ids), length-checked."""
+        """DPOTrainer over rows already in ids (prompt_ids, chosen_ids, rejected_ids), length-checked; rows
+        with keep masks keep them through to the collator."""
 
         def _prepare_dataset(self, dataset, processing_class, args, dataset_name):
             missing = {"prompt_ids", "chosen_ids", "rejected_ids"} - set(dataset.column_names)
@@ -108,7 +112,30 @@ def _dpo_class():
                 raise ValueError(f"{dataset_name} rows lack {', '.join(sorted(missing))}")
             return dataset
 
+        def _set_signature_columns_if_needed(self):
+            super()._set_signature_columns_if_needed()
+            self._signature_columns = [*self._signature_columns, *KEEP]
+
     return TokenizedDPOTrainer
+
+
+def keep_mask_collator(pad_token_id: int):
+    """TRL's preference collator whose completion mask is 0 where a row's keep mask is: the DPO sums, the
+    reference log-probs and the `sft` term all read that mask, so a skipped token counts nowhere."""
+    from trl.trainer.dpo_trainer import DataCollatorForPreference
+
+    class KeepMaskCollator(DataCollatorForPreference):
+        def torch_call(self, examples):
+            out = super().torch_call([{k: v for k, v in e.items() if k not in KEEP} for e in examples])
+            mask, n = out["completion_mask"], len(examples)
+            for i, e in enumerate(examples):
+                start = len(e["prompt_ids"])
+                for row, side in ((i, "chosen"), (n + i, "rejected")):
+                    keep = e[f"{side}_keep"]
+                    mask[row, start:start + len(keep)] *= mask.new_tensor(keep)
+            return out
+
+    return KeepMaskCollator(pad_token_id=pad_token_id, max_length=None)
 
 
 def progress_callback(out: Path, log):
@@ -179,8 +206,10 @@ def _build(method: str, s, rows: list, tokenizer, out: Path, log, anchor=None):
             args = DPOConfig(**common, beta=s.beta, loss_type=s.loss.split("+"), precompute_ref_log_probs=pre,
                              precompute_ref_batch_size=max(s.batch, 8))
             data = Dataset.from_list([r.preference() for r in rows])
+            masked = rows[0].chosen_keep is not None
+            collator = keep_mask_collator(_pad_id(tokenizer)) if masked else None
             return _with_anchor(_dpo_class(), s, anchor)(model=model, args=args, train_dataset=data, processing_class=tokenizer,
-                                peft_config=lora(s), callbacks=callbacks)
+                                peft_config=lora(s), callbacks=callbacks, data_collator=collator)
         from trl import SFTConfig, SFTTrainer
 
         args = SFTConfig(**common, packing=False)
@@ -189,6 +218,11 @@ def _build(method: str, s, rows: list, tokenizer, out: Path, log, anchor=None):
                           peft_config=lora(s), callbacks=callbacks)
     except ValueError as exc:  # peft's and TRL's refusals (no such target module, a bad setting)
         raise TrainError(f"train {method}: {' '.join(str(exc).split())[:400]}") from None
+
+
+def _pad_id(tokenizer) -> int:
+    """The pad token TRL's own collator would take: the tokenizer's pad token, else its EOS."""
+    return tokenizer.pad_token_id if tokenizer.pad_token_id is not None else tokenizer.eos_token_id
 
 
 def replace_dir(tmp: Path, final: Path) -> None:

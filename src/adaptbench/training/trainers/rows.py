@@ -148,3 +148,22 @@ def first_corrections(rows: list, chosen_of) -> tuple:
             out.append(r)
     kept = {id(r) for r in out}
     return [r for r in rows if id(r) in kept], len(rows) - len(out)
+
+
+def mask_forced_rows(rows: list, tokenizer, questions) -> tuple:
+    """(rows with keep masks, completion tokens they skip): in each completion, chosen and rejected, the tokens
+    of a bank question that the bank forces carry no loss (`--mask-forced`, `training.forced_tokens`): under
+    constrained decoding their probability is 1, so the loss is left on asking or acting and on the tokens
+    where two questions part."""
+    from dataclasses import replace
+
+    from ..forced_tokens import completion_keep, question_trie
+
+    trie, eos = question_trie(tokenizer, questions), tokenizer.eos_token_id
+    out, skipped = [], 0
+    for r in rows:
+        chosen = completion_keep(r.chosen, trie, eos)
+        rejected = None if r.rejected is None else completion_keep(r.rejected, trie, eos)
+        skipped += chosen.count(0) + (rejected.count(0) if rejected else 0)
+        out.append(replace(r, chosen_keep=chosen, rejected_keep=rejected))
+    return out, skipped

@@ -123,8 +123,19 @@ def prepare(method: str, s, tokenizer, spec=None, log=None, data: Data | None = 
         seeds = {r.get("seed") for r in pairs}
     if not encoded:
         raise TrainError(f"--data {s.data}: no rows to train {method} on ({json.dumps(left)})")
+    if s.mask_forced:
+        encoded, left["forced_tokens_masked"] = _masked(encoded, tokenizer, spec)
     kept, long = check_lengths(encoded, s.max_length)
     return Prepared(kept, left, long, tuple(sorted(x for x in seeds if isinstance(x, int))))
+
+
+def _masked(encoded: list, tokenizer, spec) -> tuple:
+    """`--mask-forced`: the rows with the bank's forced question tokens out of the loss, and how many."""
+    from ...compiler import load_domain
+    from ...grammars.index import domain_questions
+    from .rows import mask_forced_rows
+
+    return mask_forced_rows(encoded, tokenizer, domain_questions(load_domain(spec)))
 
 
 def _deduped(method: str, s, pairs: list) -> tuple:
