@@ -449,8 +449,8 @@ def test_star_gate_refuses_dedupe_corrections(tmp_path):
 
 @SKIP_MODELS
 def test_mask_forced_trains_and_says_how_many_tokens_it_skipped(tiny, tmp_path, domain):
-    """`--mask-forced`: DPO and SFT train with a bank question's forced tokens out of the loss, and train.json
-    counts them; the rows and their order are the same as without it."""
+    """`--mask-forced`: DPO and SFT train with a bank question's forced tokens out of the loss, every row kept,
+    and train.json and settings.json record it."""
     from adaptbench.cli.main import main
     from adaptbench.grammars.index import domain_questions
 
