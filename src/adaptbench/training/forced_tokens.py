@@ -45,29 +45,25 @@ def completion_keep(ids, trie: dict, eos_id: int) -> tuple:
     every token the loss should score and 0 at each token of a bank question that the bank forces (`forced`);
     all 1 when the completion holds no whole bank question."""
     ids = list(ids)
-    for start, t in enumerate(ids):
-        if t in trie:
-            flags = _question_at(ids[start:], trie, eos_id)
-            if flags is not None:
-                keep = [1] * len(ids)
-                for i, f in enumerate(flags):
-                    keep[start + i] = 0 if f else 1
-                return tuple(keep)
+    for start in range(len(ids)):
+        end = _question_end(ids, start, trie, eos_id)
+        if end is not None:
+            flags = [False] * start + forced(trie, ids[start:end]) + [False] * (len(ids) - end)
+            return tuple(0 if f else 1 for f in flags)
     return (1,) * len(ids)
 
 
-def _question_at(ids: list, trie: dict, eos_id: int) -> list | None:
-    """`forced` flags of a whole bank question at the start of `ids` (up to its EOS, or up to where the
-    template's own end of turn follows a finished question), or None when none starts there."""
-    node, flags = trie, []
-    for i, t in enumerate(ids):
-        if t not in node:
-            return flags if eos_id in node else None
-        flags.append(i > 0 and len(node) == 1)
-        node = node[t]
-        if t == eos_id:
-            return flags
-    return flags if eos_id in node else None
+def _question_end(ids: list, start: int, trie: dict, eos_id: int) -> int | None:
+    """Where a whole bank question that starts at `start` ends (after its EOS, or where the template's own end
+    of turn follows the finished question), or None when none starts there."""
+    node = trie
+    for i in range(start, len(ids)):
+        if ids[i] not in node:
+            return i if eos_id in node else None
+        node = node[ids[i]]
+        if ids[i] == eos_id:
+            return i + 1
+    return len(ids) if eos_id in node else None
 
 
 def action_spans(labels: list, eos_id: int) -> list:
