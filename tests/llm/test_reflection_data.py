@@ -400,3 +400,60 @@ def test_same_action_compares_the_whole_parsed_action(domain):
     assert same_action(parser, "Open fridge_0", "Open fridge_0 ")
     assert same_action(parser, "Look for skillet", "Look for skillet")
 
+
+
+def _follow_build(backend, domain, out, follow: bool, steps: int = 5):
+    """A build where every scored step chooses its question (Δq forced above ε1) and the student looks
+    for bread at every step: with `follow` the rollout asks the chosen question instead."""
+    from dataclasses import replace
+
+    from adaptbench.training import data
+    from adaptbench.training.data import Builder, DataSettings
+    from adaptbench.training.decide import Decision
+    from adaptbench.training.relabel import student_policy
+
+    student = student_policy(backend, domain)
+    own = student.act_batch
+    student.act_batch = lambda views: [replace(d, action="Look for bread") for d in own(views)]
+    settings = DataSettings(1, ("juan",), ("eggs",), (100,), questions="choices", max_length=None, width=1,
+                            max_steps=steps, follow_questions=follow)
+    store = PairStore(out)
+    rule = data.decide
+    data.decide = lambda *a: Decision("question", None, 1.0, 1.0)
+    try:
+        Builder(domain, student, settings, store, "tiny").run()
+    finally:
+        data.decide = rule
+    return store
+
+
+def _asked(row) -> list:
+    return [m["content"] for m in row["prompt"] if m["role"] == "assistant" and "Ask " in m["content"]]
+
+
+@SKIP_MODELS
+def test_follow_questions_asks_the_chosen_question_once_and_later_rows_see_its_answer(backend, domain, tmp_path):
+    off = _follow_build(backend, domain, tmp_path / "off", follow=False)
+    assert not any(_asked(r) for r in off.rows)  # the rollout is the student's own: no question in any prompt
+    on = _follow_build(backend, domain, tmp_path / "on", follow=True)
+    chosen = [r for r in on.rows if r["kind"] == "question"]
+    assert chosen and chosen[0]["step"] == 0 and not _asked(on.rows[0])
+    first = on.rows[1]  # the step after the first chosen question: asked, answered, in its prompt
+    assert _asked(first) == ["Action: " + chosen[0]["question"]]
+    reply = first["prompt"][[m["content"] for m in first["prompt"]].index(_asked(first)[0]) + 1]["content"]
+    assert reply.startswith("The user replied:") and chosen[0]["answer"] in reply
+    for r in on.rows:  # each question asked at most once, and the rejected answer stays the student's own
+        assert len(_asked(r)) == len(set(_asked(r))) and r["rejected"][0]["content"] == "Action: Look for bread"
+    assert {r["question"] for r in chosen} == {q.removeprefix("Action: ") for q in _asked(on.rows[-1])} | (
+        {on.rows[-1]["question"]} if on.rows[-1]["kind"] == "question" else set())
+
+
+@SKIP_MODELS
+def test_follow_questions_resumes_as_the_first_run_went(backend, domain, tmp_path):
+    whole = _follow_build(backend, domain, tmp_path / "whole", follow=True)
+    part = tmp_path / "part"
+    part.mkdir()
+    lines = (tmp_path / "whole" / "pairs.jsonl").read_text().splitlines(keepends=True)
+    (part / "pairs.jsonl").write_text("".join(lines[:3]))  # a kill after three steps
+    resumed = _follow_build(backend, domain, part, follow=True)
+    assert [r["prompt"] for r in resumed.rows] == [r["prompt"] for r in whole.rows]

@@ -96,6 +96,7 @@ def _recorded_selection(args, domain, split, personas, tasks, seeds) -> dict:
             "interactions": args.interactions, "questions": args.questions, "eps1": args.eps1, "eps2": args.eps2,
             "max_length": args.max_length, "max_steps": args.max_steps, "skip_after_failures": args.skip_after_failures,
             **({"skip_equivalent": True} if args.skip_equivalent else {}),
+            **({"follow_questions": True} if args.follow_questions else {}),
             "temperature": args.temperature, "sample_seed": args.sample_seed,
             **({"question_set": args.question_set} if args.question_set != "free" else {}),
             **({"backend": "openai", "model": _served_name(args)} if args.backend == "openai" else {})}
@@ -166,7 +167,7 @@ def _cmd_data(args) -> int:
     teacher = _teacher(args, domain, backend)
     settings = DataSettings(split, personas, tasks, seeds, args.interactions, args.questions, args.eps1, args.eps2,
                             args.max_length, args.batch, _workers(args.workers), args.max_steps,
-                            args.skip_after_failures, args.skip_equivalent)
+                            args.skip_after_failures, args.skip_equivalent, args.follow_questions)
     need = opening_tokens(domain, student_policy(backend, domain, questions=args.question_set), settings)
     if need > args.max_length:
         _fail(f"--max-length {args.max_length} cannot hold a row's opening prompt (instructions, layout, task) and "
@@ -206,6 +207,7 @@ def _cmd_data(args) -> int:
     summary["max_length"] = settings.max_length
     summary["skip_after_failures"] = settings.skip_after_failures
     summary["skip_equivalent"] = settings.skip_equivalent
+    summary["follow_questions"] = settings.follow_questions
     if args.backend == "openai":
         summary["backend"] = backend.config() | {"url": args.url}
     summary["selection"] = chosen  # a rerun of the same selection is done (`_already_built`)
@@ -269,6 +271,12 @@ def add_data(train_sub) -> None:
                         "the episode as well as the oracle's own action in no more steps (a step of the plan taken "
                         "out of order): this project's option for the scripted teacher, which carries out one plan "
                         "in one order, where the paper's LLM teacher would continue the student's own")
+    p.add_argument("--follow-questions", action="store_true",
+                   help="where the decision rule chooses the reflection's question, the rollout asks it instead of "
+                        "taking the student's action (the row is the same: a^q chosen, a^s rejected), so the user's "
+                        "reply is in the history of the steps after it and their rows are corrections with that "
+                        "answer known: DAgger's mixture of the learner and the expert, with the reflection as the "
+                        "expert of questions; this project's option (the paper's rollouts follow the student)")
     p.add_argument("--device", default="cpu", help="where the local student (and an LLM teacher) run (default cpu)")
     p.add_argument("--backend", choices=["transformers", "openai"], default="transformers",
                    help="where the student generates and scores: its local model (default), or an OpenAI-compatible "

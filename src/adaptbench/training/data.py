@@ -27,6 +27,7 @@ from dataclasses import dataclass, field, replace
 from ..errors import AdaptError
 from ..harness.batches import episode_id
 from ..harness.episode import Episode
+from ..harness.policy import Decision
 from ..harness.rollout import Job
 from ..harness.workers import run_stream_pool, stop_signals
 from ..llm.backend import Request
@@ -81,6 +82,7 @@ class DataSettings:
     max_steps: int = MAX_STEPS  # step budget per episode (the paper's 50)
     skip_after_failures: int | None = None  # skip steps after N failures in a row (ours, off by default)
     skip_equivalent: bool = False  # skip steps whose a^s ends as well as a^t under the oracle (ours, `equivalent`)
+    follow_questions: bool = False  # the rollout asks a^q where the rule chose it (ours: DAgger's mixture)
 
 
 @dataclass
@@ -103,6 +105,7 @@ class _Run:
     failures: int = 0
     made_after: list = field(default_factory=list)
     proposal: Proposal | None = None  # the teacher's at the step being considered (a^t, preferences, reason)
+    follow: str | None = None  # with `follow_questions`: the chosen question this step takes instead of a^s
 
 
 def units(settings: DataSettings) -> list:
@@ -186,11 +189,24 @@ class Builder:
             key = (r.job.persona, r.job.task, r.job.seed, r.interaction, v.step)
             if not self.store.done(key):
                 todo.append((r, v, d))
+            elif self.s.follow_questions:  # a resumed step: the question its row chose, as the first run took it
+                r.follow = self.store.chosen_question(key)
         self._consider(todo)
         for r, d in zip(live, decisions, strict=True):
-            turn = r.episode.apply(d)
+            turn = r.episode.apply(self._taken(r, d))
             r.failures = 0 if turn.ok else r.failures + 1
             r.made_after.append(tuple(r.episode.view().made))
+
+    @staticmethod
+    def _taken(r: _Run, decision):
+        """What the rollout does at this step: the student's decision, or with `follow_questions` the
+        question the decision rule chose in its place (the user's reply then stays in the history, so the
+        steps after it are the student's with that answer known; the row keeps a^s as rejected). A question
+        the episode already asked is not asked again: its answer is in the history."""
+        q, r.follow = r.follow, None
+        if q is None or any(turn.action == q for turn in r.episode.history):
+            return decision
+        return Decision(q, decision.prompt, None, {"followed": "question"})
 
     def _consider(self, todo: list) -> None:
         t0 = time.perf_counter()
@@ -235,7 +251,10 @@ class Builder:
         probs = steps_probabilities(self.student.backend, [step for _, _, step in ready], SCORE_DTYPE)
         self.times.add("scoring", t0)
         for (r, v, d, a_t, q), (fitted, answer, _), p in zip(items, ready, probs, strict=False):
-            self.store.append(self._row(r, v, d, a_t, q, None, fitted, answer, p))
+            row = self._row(r, v, d, a_t, q, None, fitted, answer, p)
+            self.store.append(row)
+            if self.s.follow_questions and row["kind"] == "question":
+                r.follow = q
 
     def _skip(self, r: _Run, student: str, teacher: str) -> str | None:
         n = self.s.skip_after_failures
@@ -351,12 +370,16 @@ class Sink:
     """A worker's stand-in for the `PairStore`: the parent's keys (already written) and the rows made
     since the last `take`."""
 
-    def __init__(self, keys):
-        self.keys, self.rows = set(keys), []
+    def __init__(self, keys, questions=None):
+        self.keys, self.rows, self.questions = set(keys), [], dict(questions or {})
 
     def done(self, key: tuple) -> bool:
         """Whether the parent's file already has this step."""
         return tuple(key) in self.keys
+
+    def chosen_question(self, key: tuple) -> str | None:
+        """The question the parent's row of this step chose, if it chose one."""
+        return self.questions.get(tuple(key))
 
     def append(self, row: dict) -> None:
         """Keep a row for the parent."""
@@ -379,11 +402,13 @@ def _chunks(it, n: int):
         yield chunk
 
 
-def _work(make_builder, store_keys, width: int):
+def _work(make_builder, store, width: int):
     """A worker's loop: `width` units at a time, one record per unit (its rows; the chunk's phase seconds
     ride on the first)."""
+    keys, questions = store.keys, store.questions
+
     def work(jobs):
-        sink = Sink(store_keys)
+        sink = Sink(keys, questions)
         b = make_builder(sink)
         for chunk in _chunks(jobs, width):
             before = dict(b.times.seconds)
@@ -415,7 +440,7 @@ def build(make_builder, settings: DataSettings, store: PairStore, progress=None)
         return b.times
     times, n = Timings(), settings.interactions
     width = min(settings.width, -(-len(todo) // settings.workers))  # no worker hoards the units another could run
-    records = run_stream_pool(todo, settings.workers, _work(make_builder, store.keys, width))
+    records = run_stream_pool(todo, settings.workers, _work(make_builder, store, width))
     for done, (u, rows, spent) in enumerate(records, 1):
         if u is None:
             raise TooLong(spent["error"])

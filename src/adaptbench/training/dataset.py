@@ -144,6 +144,7 @@ class PairStore:
         self.log = log or _stderr
         self.rows = self._read(skip_bad)
         self.keys = {row_key(r) for r in self.rows}
+        self.questions = {row_key(r): r["question"] for r in self.rows if r["kind"] == "question"}
 
     def _read(self, skip_bad: bool) -> list:
         if not self.path.is_file():
@@ -185,6 +186,10 @@ class PairStore:
         """Whether a step of this key is already written."""
         return tuple(key) in self.keys
 
+    def chosen_question(self, key: tuple) -> str | None:
+        """The question a written step's row chose (None: it chose none, or is not written)."""
+        return self.questions.get(tuple(key))
+
     def append(self, row: dict) -> None:
         """Check the row and write it as one line (flushed)."""
         check_row(row)
@@ -192,6 +197,8 @@ class PairStore:
             f.write(json.dumps(row, ensure_ascii=False) + "\n")
         self.rows.append(row)
         self.keys.add(row_key(row))
+        if row["kind"] == "question":
+            self.questions[row_key(row)] = row["question"]
 
     def finish(self) -> dict:
         """Write `dataset/` (trainable rows) and `summary.json`; returns the summary."""
