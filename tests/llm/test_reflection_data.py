@@ -403,8 +403,9 @@ def test_same_action_compares_the_whole_parsed_action(domain):
 
 
 def _follow_build(backend, domain, out, follow: bool, steps: int = 5):
-    """A build where every scored step chooses its question (Δq forced above ε1) and the student looks
-    for bread at every step: with `follow` the rollout asks the chosen question instead."""
+    """A build where every scored step chooses its question unless ε1 rules it out (the rule's Δq forced
+    to 1) and the student looks for bread at every step: with `follow` the rollout asks the chosen
+    question instead."""
     from dataclasses import replace
 
     from adaptbench.training import data
@@ -419,7 +420,7 @@ def _follow_build(backend, domain, out, follow: bool, steps: int = 5):
                             max_steps=steps, follow_questions=follow)
     store = PairStore(out)
     rule = data.decide
-    data.decide = lambda *a: Decision("question", None, 1.0, 1.0)
+    data.decide = lambda pt, pta, ps, eps1, eps2: Decision("question" if eps1 < 1.0 else "teacher", None, 1.0, 0.0)
     try:
         Builder(domain, student, settings, store, "tiny").run()
     finally:
@@ -432,7 +433,7 @@ def _asked(row) -> list:
 
 
 @SKIP_MODELS
-def test_follow_questions_asks_the_chosen_question_once_and_later_rows_see_its_answer(backend, domain, tmp_path):
+def test_follow_questions_asks_each_chosen_question_once_and_later_rows_see_its_answer(backend, domain, tmp_path):
     off = _follow_build(backend, domain, tmp_path / "off", follow=False)
     assert not any(_asked(r) for r in off.rows)  # the rollout is the student's own: no question in any prompt
     on = _follow_build(backend, domain, tmp_path / "on", follow=True)
@@ -444,8 +445,11 @@ def test_follow_questions_asks_the_chosen_question_once_and_later_rows_see_its_a
     assert reply.startswith("The user replied:") and chosen[0]["answer"] in reply
     for r in on.rows:  # each question asked at most once, and the rejected answer stays the student's own
         assert len(_asked(r)) == len(set(_asked(r))) and r["rejected"][0]["content"] == "Action: Look for bread"
-    assert {r["question"] for r in chosen} == {q.removeprefix("Action: ") for q in _asked(on.rows[-1])} | (
-        {on.rows[-1]["question"]} if on.rows[-1]["kind"] == "question" else set())
+        again = "Action: " + r["question"] in _asked(r)  # a question the user already answered: never chosen
+        assert r["kind"] == ("teacher" if again else "question")
+    assert any(r["kind"] == "teacher" for r in on.rows)  # the proposer did repeat itself here
+    assert [r["question"] for r in chosen] == [q.removeprefix("Action: ") for q in _asked(on.rows[-1])] + (
+        [on.rows[-1]["question"]] if on.rows[-1]["kind"] == "question" else [])
 
 
 @SKIP_MODELS

@@ -82,7 +82,7 @@ class DataSettings:
     max_steps: int = MAX_STEPS  # step budget per episode (the paper's 50)
     skip_after_failures: int | None = None  # skip steps after N failures in a row (ours, off by default)
     skip_equivalent: bool = False  # skip steps whose a^s ends as well as a^t under the oracle (ours, `equivalent`)
-    follow_questions: bool = False  # the rollout asks a^q where the rule chose it (ours: DAgger's mixture)
+    follow_questions: bool = False  # the rollout asks a^q where the rule chose it, never one asked before (ours)
 
 
 @dataclass
@@ -197,14 +197,12 @@ class Builder:
             r.failures = 0 if turn.ok else r.failures + 1
             r.made_after.append(tuple(r.episode.view().made))
 
-    @staticmethod
-    def _taken(r: _Run, decision):
+    def _taken(self, r: _Run, decision):
         """What the rollout does at this step: the student's decision, or with `follow_questions` the
         question the decision rule chose in its place (the user's reply then stays in the history, so the
-        steps after it are the student's with that answer known; the row keeps a^s as rejected). A question
-        the episode already asked is not asked again: its answer is in the history."""
+        steps after it are the student's with that answer known; the row keeps a^s as rejected)."""
         q, r.follow = r.follow, None
-        if q is None or any(turn.action == q for turn in r.episode.history):
+        if q is None or self._answered(r, q):  # a row of an older build may have chosen a question asked before
             return decision
         return Decision(q, decision.prompt, None, {"followed": "question"})
 
@@ -311,7 +309,8 @@ class Builder:
         prompt = fitted.prompt
         kind = "skipped"
         if reason is None:
-            d = decide(probs.p_teacher, probs.p_teacher_given_answer, probs.p_student, self.s.eps1, self.s.eps2)
+            eps1 = float("inf") if self._answered(r, q) else self.s.eps1
+            d = decide(probs.p_teacher, probs.p_teacher_given_answer, probs.p_student, eps1, self.s.eps2)
             kind, reason = d.kind, d.skip_reason
         chosen = {"question": q, "teacher": a_t}.get(kind)
         ids, canon = rejected_turn_ids(tok, prompt, decision.action, decision.stats)
@@ -321,6 +320,11 @@ class Builder:
                    rejected_token_ids=ids, rejected_canonical=canon,
                    score_dtype=self.student.backend.score_dtype(SCORE_DTYPE) if probs else None)
         return row
+
+    def _answered(self, r: _Run, q: str | None) -> bool:
+        """With `follow_questions`: whether the episode already asked `q` (its answer is in the prompt, so
+        asking again can tell the student nothing: the rule goes on as if Δq were below ε1)."""
+        return self.s.follow_questions and q is not None and any(t.action == q for t in r.episode.history)
 
     def _fit(self, r: _Run, view, prompt, a_s: str, a_t: str, q: str | None):
         """The row's prompt fitted to `max_length` with room for the longest completion it may take (the
