@@ -1,14 +1,16 @@
 """How far did DPO move a model toward the chosen side of its own training pairs?
 
     python bench/pair_margins.py --pairs runs/read-rdpo/pairs/pairs.jsonl --model runs/read-rdpo/base \\
-        --model runs/read-rdpo/dpo/merged [--kind question] [--limit 250]
+        --model runs/read-rdpo/dpo/merged [--kind question] [--limit 250] [--after-answer]
 
 For each pair of `--kind` (question or teacher rows of `adapt train data`), the summed log-probability of
 the chosen and of the rejected completion after the pair's prompt, in the ids DPO trains on
 (`trainers.rows.preference_row`), under each `--model`. Prints, per model, the mean chosen and rejected
 log-probabilities, the mean margin (chosen - rejected), the share of pairs where the chosen side is the more
 likely, and at the first token where the two part, the log-probability difference and the share where the
-chosen token is the likelier: what a greedy student would now pick between the two. A measurement of why a
+chosen token is the likelier: what a greedy student would now pick between the two. `--after-answer` keeps
+the teacher rows a preference decided whose prompt holds an answered question (the rows that teach using an
+answer, as `adapt train data --follow-questions` makes them). A measurement of why a
 DPO model does or does not ask (docs/training.md), not a shipped tool.
 """
 
@@ -38,6 +40,12 @@ def pair_logprobs(model, row) -> tuple:
     return c, j, float(lp_k[row.chosen[k]] - lp_k[row.rejected[k]])
 
 
+def answered(row) -> bool:
+    """Whether a row was decided by a preference and its prompt holds a question the user answered."""
+    asked = any(m["role"] == "assistant" and m["content"].startswith("Action: Ask ") for m in row["prompt"])
+    return bool(row.get("teacher_preferences")) and asked
+
+
 def main(argv=None) -> int:
     """Score each model on the chosen and rejected sides of the pairs; print one line per model."""
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -45,6 +53,8 @@ def main(argv=None) -> int:
     ap.add_argument("--model", action="append", required=True, help="a model directory or name (repeat)")
     ap.add_argument("--kind", default="question", choices=("question", "teacher"))
     ap.add_argument("--limit", type=int, default=250, help="pairs scored at most (the first ones)")
+    ap.add_argument("--after-answer", action="store_true",
+                    help="only rows a preference decided whose prompt holds a question the user answered")
     args = ap.parse_args(argv)
 
     import torch
@@ -56,7 +66,8 @@ def main(argv=None) -> int:
 
     torch.set_num_threads(1)
     with open(args.pairs) as f:
-        rows = [r for r in map(json.loads, f) if r.get("kind") == args.kind][:args.limit]
+        rows = [r for r in map(json.loads, f) if r.get("kind") == args.kind and (not args.after_answer or answered(r))]
+    rows = rows[:args.limit]
     for name in args.model:
         path = resolve_model(name)
         tok = AutoTokenizer.from_pretrained(path)
@@ -69,7 +80,7 @@ def main(argv=None) -> int:
             rejected.append(j)
             branch.append(b)
         margins = [c - j for c, j in zip(chosen, rejected, strict=True)]
-        print(json.dumps({"model": name, "kind": args.kind, "pairs": len(rows),
+        print(json.dumps({"model": name, "kind": args.kind, "after_answer": args.after_answer, "pairs": len(rows),
                           "chosen": round(statistics.mean(chosen), 2), "rejected": round(statistics.mean(rejected), 2),
                           "margin": round(statistics.mean(margins), 2),
                           "margin_median": round(statistics.median(margins), 2),
