@@ -9,7 +9,9 @@ and answer (`rows.fit_prompt`), P(a^t|x), P(a^t|x,q,answer), P(a^s|x) are scored
 the backend's scoring primitive (`score.steps_probabilities`: the asked steps of a batch in one call, so a
 served backend has them all in flight), and the decision rule (`decide`) picks the chosen completion. The
 rejected answer (the student's own) keeps the ids the student generated (`rejected_token_ids`,
-`training.ids`). Rows go to `pairs.jsonl` as they are made. The student runs on either backend: a local
+`training.ids`). With `follow_questions` (ours) the rollout asks the question a row chose in place of the
+student's action, so later rows are corrections made with its answer known, and a question the episode
+already asked is never chosen again. Rows go to `pairs.jsonl` as they are made. The student runs on either backend: a local
 model or a served engine (`--backend openai`), the rows the same in meaning (same ids, same scoring).
 
 With `interactions=2` each (persona, task, seed) runs twice in the same scene: the second interaction's
