@@ -401,8 +401,7 @@ def test_same_action_compares_the_whole_parsed_action(domain):
     assert same_action(parser, "Look for skillet", "Look for skillet")
 
 
-
-def _follow_build(backend, domain, out, follow: bool, steps: int = 5):
+def _follow_build(backend, domain, out, follow: bool, monkeypatch, steps: int = 5):
     """A build where every scored step chooses its question unless ε1 rules it out (the rule's Δq forced
     to 1) and the student looks for bread at every step: with `follow` the rollout asks the chosen
     question instead."""
@@ -419,12 +418,9 @@ def _follow_build(backend, domain, out, follow: bool, steps: int = 5):
     settings = DataSettings(1, ("juan",), ("eggs",), (100,), questions="choices", max_length=None, width=1,
                             max_steps=steps, follow_questions=follow)
     store = PairStore(out)
-    rule = data.decide
-    data.decide = lambda pt, pta, ps, eps1, eps2: Decision("question" if eps1 < 1.0 else "teacher", None, 1.0, 0.0)
-    try:
-        Builder(domain, student, settings, store, "tiny").run()
-    finally:
-        data.decide = rule
+    monkeypatch.setattr(data, "decide", lambda pt, pta, ps, eps1, eps2: Decision(
+        "question" if eps1 < 1.0 else "teacher", None, 1.0, 0.0))
+    Builder(domain, student, settings, store, "tiny").run()
     return store
 
 
@@ -433,10 +429,10 @@ def _asked(row) -> list:
 
 
 @SKIP_MODELS
-def test_follow_questions_asks_each_chosen_question_once_and_later_rows_see_its_answer(backend, domain, tmp_path):
-    off = _follow_build(backend, domain, tmp_path / "off", follow=False)
+def test_follow_questions_asks_each_chosen_question_once_and_later_rows_see_its_answer(backend, domain, tmp_path, monkeypatch):
+    off = _follow_build(backend, domain, tmp_path / "off", False, monkeypatch)
     assert not any(_asked(r) for r in off.rows)  # the rollout is the student's own: no question in any prompt
-    on = _follow_build(backend, domain, tmp_path / "on", follow=True)
+    on = _follow_build(backend, domain, tmp_path / "on", True, monkeypatch)
     chosen = [r for r in on.rows if r["kind"] == "question"]
     assert chosen and chosen[0]["step"] == 0 and not _asked(on.rows[0])
     first = on.rows[1]  # the step after the first chosen question: asked, answered, in its prompt
@@ -453,11 +449,11 @@ def test_follow_questions_asks_each_chosen_question_once_and_later_rows_see_its_
 
 
 @SKIP_MODELS
-def test_follow_questions_resumes_as_the_first_run_went(backend, domain, tmp_path):
-    whole = _follow_build(backend, domain, tmp_path / "whole", follow=True)
+def test_follow_questions_resumes_as_the_first_run_went(backend, domain, tmp_path, monkeypatch):
+    whole = _follow_build(backend, domain, tmp_path / "whole", True, monkeypatch)
     part = tmp_path / "part"
     part.mkdir()
     lines = (tmp_path / "whole" / "pairs.jsonl").read_text().splitlines(keepends=True)
     (part / "pairs.jsonl").write_text("".join(lines[:3]))  # a kill after three steps
-    resumed = _follow_build(backend, domain, part, follow=True)
+    resumed = _follow_build(backend, domain, part, True, monkeypatch)
     assert [r["prompt"] for r in resumed.rows] == [r["prompt"] for r in whole.rows]
