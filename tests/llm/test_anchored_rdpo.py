@@ -1,0 +1,84 @@
+"""`bench/anchored_rdpo.py`: its completion scores are those of the whole sequence, the DPO term is log 2
+where the model is its reference, a masked token counts nowhere, and "no DPO" is the chosen side's loss."""
+
+from __future__ import annotations
+
+import functools
+import importlib.util
+import math
+import sys
+from pathlib import Path
+
+from .conftest import SKIP_MODELS
+
+pytestmark = SKIP_MODELS
+BENCH = Path(__file__).resolve().parents[2] / "bench"
+
+
+@functools.cache
+def _script():
+    """The bench script as a module (it imports its neighbours)."""
+    sys.path.insert(0, str(BENCH))
+    try:
+        spec = importlib.util.spec_from_file_location("anchored_rdpo", BENCH / "anchored_rdpo.py")
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+    finally:
+        sys.path.remove(str(BENCH))
+    return module
+
+
+def _models(tiny):
+    import torch
+    from transformers import AutoModelForCausalLM
+
+    return [AutoModelForCausalLM.from_pretrained(tiny, dtype=torch.float32).eval() for _ in range(2)]
+
+
+def _row(keep=None):
+    from adaptbench.training.trainers.encode import Encoded
+
+    key = ("p", "eggs", 100, 0, 1)
+    return Encoded(key, tuple(range(5, 40)), (41, 42, 43), (44, 45), chosen_keep=keep,
+                   rejected_keep=None if keep is None else (1, 1))
+
+
+def test_completion_scores_are_the_whole_sequences(tiny):
+    import torch
+
+    model, _ = _models(tiny)
+    row = _row()
+    lc, lr = _script().completion_logprobs(model, row.prompt, [row.chosen, row.rejected])
+    for part, got in ((row.chosen, lc), (row.rejected, lr)):
+        ids = torch.tensor([list(row.prompt) + list(part)])
+        with torch.no_grad():
+            logp = model(input_ids=ids).logits[0].log_softmax(-1)
+        n = len(row.prompt)
+        whole = sum(float(logp[n - 1 + i, t]) for i, t in enumerate(part))
+        assert abs(float(got.detach().sum()) - whole) < 1e-3
+
+
+def test_dpo_term_is_log_two_at_the_reference_and_sft_is_the_chosen_loss(tiny):
+    model, anchor = _models(tiny)
+    s = _script()
+    rows = [_row()]
+    (term,), _ = s.row_terms("no-reflection", model, anchor, rows, [0], {}, 0.1)
+    assert abs(float(term.detach()) - math.log(2)) < 1e-4
+    (sft,), right = s.row_terms("sft", model, anchor, rows, [0], {}, 0.1)
+    (lc,) = s.completion_logprobs(model, rows[0].prompt, [rows[0].chosen])
+    assert right == 0 and abs(float(sft.detach()) + float(lc.detach().mean())) < 1e-5
+    (dpo,), _ = s.row_terms("dpo", model, anchor, rows, [0], {}, 0.1)
+    assert abs(float(dpo.detach()) - (math.log(2) + float(sft.detach()))) < 1e-4
+
+
+def test_a_masked_token_counts_nowhere(tiny):
+    import torch
+
+    model, _ = _models(tiny)
+    s = _script()
+    full = _row()
+    masked = _row(keep=(1, 0, 1))
+    (sft_masked,), _ = s.row_terms("sft", model, None, [masked], [0], {}, 0.1)
+    (lc,) = s.completion_logprobs(model, full.prompt, [full.chosen])
+    expected = -(lc[0] + lc[2]) / 2
+    assert torch.isclose(sft_masked.detach(), expected.detach(), atol=1e-5)
