@@ -23,7 +23,8 @@ with the start model frozen, which is also DPO's reference. The row terms are th
 Rows are encoded exactly as `adapt train dpo` encodes them (`trainers.encode.Encoder`), and `--mask-forced`
 takes the bank's forced question tokens out of every term as `adapt train dpo --mask-forced` does. The model
 is saved to OUT/model-STEP every `--save-every` updates (for `adapt rollout --model`), and OUT/curve.jsonl has
-a line per ten updates. Not a shipped training method: a measurement (docs/training.md).
+a line per ten updates; the same command run again resumes after the last saved model (its optimizer state
+saved with it, the data order replayed), and Ctrl-C stops it saying where. Not a shipped training method: a measurement (docs/training.md).
 """
 
 from __future__ import annotations
@@ -121,10 +122,14 @@ def row_terms(method: str, model, anchor, rows: list, idx: list, cache: dict, be
     return terms, right
 
 
-def main(argv=None) -> int:
-    """Train one method's rows on full weights beside anchored episodes; save as it goes."""
+SETTINGS = ("model", "data", "method", "episodes", "rows_per_update", "episodes_per_update", "anchor_kl", "beta", "lr",
+            "mask_forced", "seed")  # what a resumed run must share with the first
+
+
+def parse(argv=None):
+    """The command line."""
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--out", required=True, help="folder for curve.jsonl and the saved models")
+    ap.add_argument("--out", required=True, help="folder for curve.jsonl and the saved models; an existing one resumes")
     ap.add_argument("--model", required=True, help="the base student (a name or a directory); also the reference")
     ap.add_argument("--data", required=True, help="`adapt train data` output (a directory with pairs.jsonl)")
     ap.add_argument("--method", choices=METHODS, default="dpo")
@@ -136,10 +141,85 @@ def main(argv=None) -> int:
     ap.add_argument("--beta", type=float, default=0.1, help="DPO beta (adapt train dpo's default)")
     ap.add_argument("--lr", type=float, default=1e-3)
     ap.add_argument("--mask-forced", action="store_true", help="no loss on the bank's forced question tokens")
-    ap.add_argument("--save-every", type=int, default=100)
+    ap.add_argument("--save-every", type=int, default=100, help="updates between saved models (and resume points)")
     ap.add_argument("--seed", type=int, default=0, help="data order")
     ap.add_argument("--threads", type=int, default=1, help="torch threads (default 1: the run beside another job)")
-    args = ap.parse_args(argv)
+    return ap.parse_args(argv)
+
+
+def resume_point(out: Path, args) -> int:
+    """The last saved update of a run in `out` (0 for a new one), its curve cut back to it; SystemExit when
+    `out` holds a run with other settings."""
+    settings = {k: getattr(args, k) for k in SETTINGS}
+    recorded = out / "settings.json"
+    if recorded.is_file():
+        old = json.loads(recorded.read_text())
+        changed = sorted(k for k in SETTINGS if old.get(k) != settings[k])
+        if changed:
+            raise SystemExit(f"{out} holds a run with other settings ({', '.join(changed)}): choose another --out")
+    elif (out / "curve.jsonl").is_file():
+        raise SystemExit(f"{out} holds a curve but no settings.json: choose another --out")
+    out.mkdir(parents=True, exist_ok=True)
+    recorded.write_text(json.dumps(settings, indent=1) + "\n")
+    at = max(saved_steps(out), default=0)
+    curve = out / "curve.jsonl"
+    if curve.is_file():
+        lines = [line for line in curve.read_text().splitlines() if json.loads(line)["step"] <= at]
+        curve.write_text("".join(line + "\n" for line in lines))
+    return at
+
+
+def saved_steps(out: Path) -> list:
+    """The updates whose model and optimizer state are saved whole in `out` (a `.partial` one is not)."""
+    return [int(d.name[len("model-"):]) for d in out.glob("model-*")
+            if d.name[len("model-"):].isdigit() and (d / "optimizer.pt").is_file()]
+
+
+def save(out: Path, step: int, model, tok, opt) -> None:
+    """The model (for `adapt rollout --model`) and the optimizer's state (to resume) in OUT/model-STEP, written
+    beside and then put in place."""
+    import shutil
+
+    import torch
+
+    final, tmp = out / f"model-{step}", out / f"model-{step}.partial"
+    shutil.rmtree(tmp, ignore_errors=True)
+    model.save_pretrained(tmp)
+    tok.save_pretrained(tmp)
+    torch.save(opt.state_dict(), tmp / "optimizer.pt")
+    shutil.rmtree(final, ignore_errors=True)
+    tmp.rename(final)
+
+
+def curve_line(step: int, seen: list, method: str, per_update: int, seconds: float) -> dict:
+    """The mean figures of the last ten updates."""
+    last = seen[-10:]
+    n = len(last)
+    return {"step": step, "loss": round(sum(x[0] for x in last) / n, 4), "kl": round(sum(x[1] for x in last) / n, 5),
+            "episode_loss": round(sum(x[3] for x in last) / n, 4),
+            "chosen_ahead": None if method == "sft" else sum(x[2] for x in last) / (n * per_update),
+            "seconds": round(seconds, 1)}
+
+
+def update(args, model, anchor, opt, rows, episodes, row_idx, ep_idx, cache) -> tuple:
+    """One optimizer step; returns (loss, KL, DPO rows with the chosen side ahead, episodes' token loss)."""
+    import torch
+
+    opt.zero_grad()
+    terms, right = row_terms(args.method, model, anchor, rows, row_idx, cache, args.beta)
+    ce, kls = anchored_episode_terms(model, anchor, [episodes[i] for i in ep_idx])
+    kl = torch.stack(kls).mean()
+    loss = torch.stack(terms + ce).mean() + args.anchor_kl * kl
+    loss.backward()
+    torch.nn.utils.clip_grad_norm_(model.parameters(), 1.0)
+    opt.step()
+    return float(loss.detach()), float(kl.detach()), right, float(torch.stack(ce).mean().detach())
+
+
+def main(argv=None) -> int:
+    """Train one method's rows on full weights beside anchored episodes; save as it goes, resume from the last
+    saved model, stop at Ctrl-C saying where."""
+    args = parse(argv)
 
     import torch
     from transformers import AutoModelForCausalLM, AutoTokenizer
@@ -150,49 +230,42 @@ def main(argv=None) -> int:
     torch.set_num_threads(args.threads)
     torch.manual_seed(args.seed)
     out = Path(args.out)
-    curve = out / "curve.jsonl"
-    if curve.is_file():
-        raise SystemExit(f"{curve} exists: choose another --out")
-    out.mkdir(parents=True, exist_ok=True)
+    at = resume_point(out, args)
     path = resolve_model(args.model)
     tok = AutoTokenizer.from_pretrained(path)
-    model = AutoModelForCausalLM.from_pretrained(path, dtype=torch.float32)
+    model = AutoModelForCausalLM.from_pretrained(out / f"model-{at}" if at else path, dtype=torch.float32)
     anchor = AutoModelForCausalLM.from_pretrained(path, dtype=torch.float32).eval().requires_grad_(False)
     rows = method_rows(args.method, args.data, tok, args.mask_forced)
     episodes = training_episodes(load_domain(), tok, args.episodes, args.mask_forced)
     print(f"{args.method}: {len(rows)} rows, {len(episodes)} episodes; {args.steps} updates of "
-          f"{args.rows_per_update} rows + {args.episodes_per_update} episodes, lr {args.lr}, KL x {args.anchor_kl}",
-          flush=True)
+          f"{args.rows_per_update} rows + {args.episodes_per_update} episodes, lr {args.lr}, KL x {args.anchor_kl}"
+          + (f"; resuming after update {at}" if at else ""), flush=True)
     opt = torch.optim.AdamW(model.parameters(), lr=args.lr, weight_decay=0.0)
+    if at:
+        opt.load_state_dict(torch.load(out / f"model-{at}" / "optimizer.pt"))
     rng = random.Random(args.seed)
-    row_batches, ep_batches = batches(len(rows), args.rows_per_update, rng), batches(len(episodes),
-                                                                                    args.episodes_per_update, rng)
+    row_batches = batches(len(rows), args.rows_per_update, rng)
+    ep_batches = batches(len(episodes), args.episodes_per_update, rng)
+    for _ in range(at):  # the data order the first run went through
+        next(row_batches), next(ep_batches)
     cache: dict = {}
     seen: list = []
     t0 = time.perf_counter()
-    for step in range(1, args.steps + 1):
-        opt.zero_grad()
-        terms, right = row_terms(args.method, model, anchor, rows, next(row_batches), cache, args.beta)
-        ce, kls = anchored_episode_terms(model, anchor, [episodes[i] for i in next(ep_batches)])
-        kl = torch.stack(kls).mean()
-        loss = torch.stack(terms + ce).mean() + args.anchor_kl * kl
-        loss.backward()
-        torch.nn.utils.clip_grad_norm_(model.parameters(), 1.0)
-        opt.step()
-        seen.append((float(loss.detach()), float(kl.detach()), right, float(torch.stack(ce).mean().detach())))
-        if step % 10 == 0:
-            last = seen[-10:]
-            rec = {"step": step, "loss": round(sum(x[0] for x in last) / 10, 4),
-                   "kl": round(sum(x[1] for x in last) / 10, 5),
-                   "episode_loss": round(sum(x[3] for x in last) / 10, 4),
-                   "chosen_ahead": None if args.method == "sft" else sum(x[2] for x in last) / (10 * args.rows_per_update),
-                   "seconds": round(time.perf_counter() - t0, 1)}
-            with curve.open("a") as f:
-                f.write(json.dumps(rec) + "\n")
-            print(json.dumps(rec), flush=True)
-        if step % args.save_every == 0 or step == args.steps:
-            model.save_pretrained(out / f"model-{step}")
-            tok.save_pretrained(out / f"model-{step}")
+    step = at
+    try:
+        for step in range(at + 1, args.steps + 1):
+            seen.append(update(args, model, anchor, opt, rows, episodes, next(row_batches), next(ep_batches), cache))
+            if step % 10 == 0:
+                rec = curve_line(step, seen, args.method, args.rows_per_update, time.perf_counter() - t0)
+                with (out / "curve.jsonl").open("a") as f:
+                    f.write(json.dumps(rec) + "\n")
+                print(json.dumps(rec), flush=True)
+            if step % args.save_every == 0 or step == args.steps:
+                save(out, step, model, tok, opt)
+    except KeyboardInterrupt:
+        last = max(saved_steps(out), default=0)
+        print(f"stopped during update {step}; the same command resumes after update {last}", file=sys.stderr)
+        return 130
     return 0
 
 

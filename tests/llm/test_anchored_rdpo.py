@@ -82,3 +82,32 @@ def test_a_masked_token_counts_nowhere(tiny):
     (lc,) = s.completion_logprobs(model, full.prompt, [full.chosen])
     expected = -(lc[0] + lc[2]) / 2
     assert torch.isclose(sft_masked.detach(), expected.detach(), atol=1e-5)
+
+
+def _args(**over):
+    import argparse
+
+    s = _script()
+    base = dict(out="", model="m", data="d", method="dpo", episodes=["e.jsonl"], rows_per_update=4,
+                episodes_per_update=2, anchor_kl=10.0, beta=0.1, lr=1e-3, mask_forced=True, seed=0)
+    assert set(base) - {"out"} == set(s.SETTINGS)
+    return argparse.Namespace(**(base | over))
+
+
+def test_a_rerun_resumes_after_the_last_whole_save_and_cuts_its_curve(tmp_path):
+    import json
+
+    import pytest
+
+    s = _script()
+    out = tmp_path / "run"
+    assert s.resume_point(out, _args()) == 0
+    for step in (100, 200):
+        (out / f"model-{step}").mkdir()
+        (out / f"model-{step}" / "optimizer.pt").write_bytes(b"")
+    (out / "model-300.partial").mkdir()  # killed while saving
+    (out / "curve.jsonl").write_text("".join(json.dumps({"step": k}) + "\n" for k in range(10, 260, 10)))
+    assert s.resume_point(out, _args()) == 200
+    assert [json.loads(x)["step"] for x in (out / "curve.jsonl").read_text().splitlines()][-1] == 200
+    with pytest.raises(SystemExit, match="lr"):
+        s.resume_point(out, _args(lr=3e-4))
