@@ -3,29 +3,17 @@ where the model is its reference, a masked token counts nowhere, and "no DPO" is
 
 from __future__ import annotations
 
-import functools
-import importlib.util
 import math
-import sys
-from pathlib import Path
 
+from .bench_scripts import bench_script
 from .conftest import SKIP_MODELS
 
 pytestmark = SKIP_MODELS
-BENCH = Path(__file__).resolve().parents[2] / "bench"
 
 
-@functools.cache
 def _script():
-    """The bench script as a module (it imports its neighbours)."""
-    sys.path.insert(0, str(BENCH))
-    try:
-        spec = importlib.util.spec_from_file_location("anchored_rdpo", BENCH / "anchored_rdpo.py")
-        module = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(module)
-    finally:
-        sys.path.remove(str(BENCH))
-    return module
+    """The bench script as a module."""
+    return bench_script("anchored_rdpo")
 
 
 def _models(tiny):

@@ -3,28 +3,15 @@ only, and is nothing where the model has not moved."""
 
 from __future__ import annotations
 
-import functools
-import importlib.util
-import sys
-from pathlib import Path
-
+from .bench_scripts import bench_script
 from .conftest import SKIP_MODELS
 
 pytestmark = SKIP_MODELS
-BENCH = Path(__file__).resolve().parents[2] / "bench"
 
 
-@functools.cache
 def _script():
-    """The bench script as a module (it imports its neighbour `answer_context`)."""
-    sys.path.insert(0, str(BENCH))
-    try:
-        spec = importlib.util.spec_from_file_location("cook_and_read", BENCH / "cook_and_read.py")
-        module = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(module)
-    finally:
-        sys.path.remove(str(BENCH))
-    return module
+    """The bench script as a module."""
+    return bench_script("cook_and_read")
 
 
 def _models(tiny):

@@ -3,23 +3,17 @@ names (`--only`)."""
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import pytest
 
+from .bench_scripts import bench_script
 from .conftest import SKIP_MODELS
 
 pytestmark = SKIP_MODELS
-SCRIPT = Path(__file__).resolve().parents[2] / "bench" / "interpolate.py"
 
 
 def _script():
     """The bench script as a module."""
-    spec = importlib.util.spec_from_file_location("interpolate", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return bench_script("interpolate")
 
 
 @pytest.fixture(scope="module")
