@@ -24,7 +24,8 @@ Rows are encoded exactly as `adapt train dpo` encodes them (`trainers.encode.Enc
 takes the bank's forced question tokens out of every term as `adapt train dpo --mask-forced` does. The model
 is saved to OUT/model-STEP every `--save-every` updates (for `adapt rollout --model`), and OUT/curve.jsonl has
 a line per ten updates; the same command run again resumes after the last saved model (its optimizer state
-saved with it, the data order replayed), and Ctrl-C stops it saying where. Not a shipped training method: a measurement (docs/training.md).
+saved with it, the data order replayed), and Ctrl-C stops it saying where. Not a shipped training method: a
+measurement (docs/training.md).
 """
 
 from __future__ import annotations
@@ -45,11 +46,15 @@ def method_rows(method: str, data: str, tok, mask: bool) -> list:
     """The method's rows from `adapt train data`'s output `data`, encoded as `adapt train` encodes them
     (with keep masks under `mask`)."""
     from adaptbench.compiler import load_domain
+    from adaptbench.errors import AdaptError
     from adaptbench.grammars.index import domain_questions
     from adaptbench.training.trainers import rows as R
     from adaptbench.training.trainers.encode import Encoder
 
-    pairs, bad = R.read_pairs(data)
+    try:
+        pairs, _ = R.read_pairs(data)
+    except AdaptError as exc:  # no pairs.jsonl, an unfinished build, a bad row: the message names it
+        raise SystemExit(str(exc)) from None
     enc = Encoder(tok)
     build = {"dpo": R.dpo_rows, "sft": R.sft_rows, "no-reflection": R.no_reflection_rows}[method]
     rows = build(pairs, enc)
@@ -233,9 +238,9 @@ def main(argv=None) -> int:
     at = resume_point(out, args)
     path = resolve_model(args.model)
     tok = AutoTokenizer.from_pretrained(path)
+    rows = method_rows(args.method, args.data, tok, args.mask_forced)  # bad data stops the run before the models load
     model = AutoModelForCausalLM.from_pretrained(out / f"model-{at}" if at else path, dtype=torch.float32)
     anchor = AutoModelForCausalLM.from_pretrained(path, dtype=torch.float32).eval().requires_grad_(False)
-    rows = method_rows(args.method, args.data, tok, args.mask_forced)
     episodes = training_episodes(load_domain(), tok, args.episodes, args.mask_forced)
     print(f"{args.method}: {len(rows)} rows, {len(episodes)} episodes; {args.steps} updates of "
           f"{args.rows_per_update} rows + {args.episodes_per_update} episodes, lr {args.lr}, KL x {args.anchor_kl}"
