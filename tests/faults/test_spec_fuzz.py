@@ -56,10 +56,10 @@ def test_hostile_yaml_in_process(tmp_path, name, edits, expected):
     """YAML-level variants, straight through the loader (bounded before anything recursive runs)."""
     path = tmp_path / "h.yaml"
     path.write_bytes(edits[HOSTILE])
-    t = time.monotonic()
+    t = time.process_time()  # the loader's own work: a busy machine's neighbours do not count (0.3 s here, 5.9 s of wall under load)
     doc, diags = load_file(path, "h.yaml")
     if doc is not None:
         diags = diags + validate_schema(doc, "objects")
-    assert time.monotonic() - t < 5
+    assert time.process_time() - t < 5
     text = "\n".join(d.render() for d in diags)
     assert diags and re.search(expected, text + " error"), text
