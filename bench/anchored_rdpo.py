@@ -67,20 +67,10 @@ def method_rows(method: str, data: str, tok, mask: bool) -> list:
 
 
 def completion_logprobs(model, prompt: tuple, completions: list) -> list:
-    """Each completion's per-token log-probabilities after `prompt` (with gradients when `model` has them):
-    the prompt runs once, each completion after its keys and values."""
-    import torch
+    """Each completion's per-token log-probabilities after `prompt` (`shared_prefix.completion_token_logprobs`)."""
+    from adaptbench.training.shared_prefix import completion_token_logprobs
 
-    from adaptbench.training.shared_prefix import _extend
-
-    head = list(prompt[:-1])
-    layers = _extend(model, torch, head, 0, (), logits_to_keep=1)[1]
-    out = []
-    for c in completions:
-        logits = _extend(model, torch, head + [prompt[-1], *c], len(head), layers)[0]
-        logp = logits[:-1].float().log_softmax(-1)
-        out.append(logp[torch.arange(len(c)), torch.tensor(list(c), device=logp.device)])
-    return out
+    return completion_token_logprobs(model, prompt, completions)
 
 
 def _keep(row, side: str):

@@ -102,10 +102,28 @@ def prompt_action_logprobs(model, prompts: list, actions: list):
     rows = []
     for prompt, head in zip(prompts, heads, strict=True):
         layers = _extend(model, torch, head, start, shared)[1] if len(head) > start else shared
-        row = []
-        for action in actions:
-            logits = _extend(model, torch, head + prompt[-1:] + action, len(head), layers)[0]
-            logp = logits[:-1].float().log_softmax(-1)
-            row.append(logp[torch.arange(len(action)), torch.tensor(action, device=logp.device)].sum())
-        rows.append(torch.stack(row))
+        rows.append(torch.stack([_action_tokens(model, torch, head, prompt[-1], action, layers).sum()
+                                 for action in actions]))
     return torch.stack(rows)
+
+
+def _action_tokens(model, torch, head: list, last: int, action, layers: tuple):
+    """The log-probability of each of `action`'s tokens after `head` (whose keys and values are `layers`) and
+    the prompt's `last` token."""
+    action = list(action)
+    logits = _extend(model, torch, head + [last] + action, len(head), layers)[0]
+    logp = logits[:-1].float().log_softmax(-1)
+    return logp[torch.arange(len(action)), torch.tensor(action, device=logp.device)]
+
+
+def completion_token_logprobs(model, prompt, completions: list) -> list:
+    """Each completion's per-token log-probabilities after `prompt` (token ids), with gradients: the prompt
+    runs once, each completion after its keys and values (DPO's sums with a per-token mask,
+    bench/anchored_rdpo.py)."""
+    import torch
+
+    if not prompt or any(not c for c in completions):
+        raise ValueError("the prompt and every completion need at least one token")
+    head = list(prompt[:-1])
+    layers = _extend(model, torch, head, 0, (), logits_to_keep=1)[1] if head else ()
+    return [_action_tokens(model, torch, head, prompt[-1], c, layers) for c in completions]
