@@ -1,7 +1,7 @@
 """Reflection-DPO on every weight of the student, held to its cooking by a KL anchor on its own episodes.
 
     python bench/anchored_rdpo.py --out runs/rd27/dpo --model runs/r24/K10/model-500 \\
-        --data runs/rd26f/pairs --episodes runs/own/episodes.jsonl --method dpo [--steps 300] [--anchor-kl 10]
+        --data runs/rd26f/pairs [runs/rd28/pairs ...] --episodes runs/own/episodes.jsonl --method dpo [--steps 300] [--anchor-kl 10]
 
 `adapt train dpo` trains a LoRA adapter (the paper's rank 4; rank 8 here) with TRL. On the ~1 M-parameter CPU
 student, 60 such updates moved the decision that the twenty-sixth session's corrections ask for (the next
@@ -42,9 +42,9 @@ from cook_and_read import anchored_episode_terms, batches, training_episodes  # 
 METHODS = ("dpo", "sft", "no-reflection")
 
 
-def method_rows(method: str, data: str, tok, mask: bool) -> list:
-    """The method's rows from `adapt train data`'s output `data`, encoded as `adapt train` encodes them
-    (with keep masks under `mask`)."""
+def method_rows(method: str, data: list, tok, mask: bool) -> list:
+    """The method's rows from `adapt train data`'s outputs `data` (one or several folders, e.g. different
+    scene seeds), encoded as `adapt train` encodes them (with keep masks under `mask`)."""
     from adaptbench.compiler import load_domain
     from adaptbench.errors import AdaptError
     from adaptbench.grammars.index import domain_questions
@@ -52,14 +52,14 @@ def method_rows(method: str, data: str, tok, mask: bool) -> list:
     from adaptbench.training.trainers.encode import Encoder
 
     try:
-        pairs, _ = R.read_pairs(data)
+        pairs = [row for folder in data for row in R.read_pairs(folder)[0]]
     except AdaptError as exc:  # no pairs.jsonl, an unfinished build, a bad row: the message names it
         raise SystemExit(str(exc)) from None
     enc = Encoder(tok)
     build = {"dpo": R.dpo_rows, "sft": R.sft_rows, "no-reflection": R.no_reflection_rows}[method]
     rows = build(pairs, enc)
     if not rows:
-        raise SystemExit(f"--data {data}: no rows for {method}")
+        raise SystemExit(f"--data {' '.join(data)}: no rows for {method}")
     if mask:
         rows, skipped = R.mask_forced_rows(rows, tok, domain_questions(load_domain()))
         print(f"--mask-forced: {skipped} forced question tokens carry no loss", flush=True)
@@ -126,7 +126,8 @@ def parse(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--out", required=True, help="folder for curve.jsonl and the saved models; an existing one resumes")
     ap.add_argument("--model", required=True, help="the base student (a name or a directory); also the reference")
-    ap.add_argument("--data", required=True, help="`adapt train data` output (a directory with pairs.jsonl)")
+    ap.add_argument("--data", required=True, nargs="+",
+                    help="`adapt train data` outputs (directories with pairs.jsonl; several are read in order)")
     ap.add_argument("--method", choices=METHODS, default="dpo")
     ap.add_argument("--episodes", required=True, nargs="+", help="the base's own training episodes (JSONL records)")
     ap.add_argument("--steps", type=int, default=300, help="updates")

@@ -99,3 +99,21 @@ def test_a_rerun_resumes_after_the_last_whole_save_and_cuts_its_curve(tmp_path):
     assert [json.loads(x)["step"] for x in (out / "curve.jsonl").read_text().splitlines()][-1] == 200
     with pytest.raises(SystemExit, match="lr"):
         s.resume_point(out, _args(lr=3e-4))
+
+
+def test_several_data_folders_are_read_in_order_and_an_unfinished_one_is_named(tiny, tmp_path):
+    import pytest
+    from transformers import AutoTokenizer
+
+    from .test_trainers import _messages, _pairs, _row
+
+    s = _script()
+    tok = AutoTokenizer.from_pretrained(tiny)
+    _pairs(tmp_path / "a", [_row(0, "teacher", _messages(3)), _row(1, "question", _messages(3), chosen='Ask "Cheese?"')])
+    _pairs(tmp_path / "b", [_row(2, "teacher", _messages(3))])
+    folders = [str(tmp_path / "a"), str(tmp_path / "b")]
+    assert [r.key[-1] for r in s.method_rows("dpo", folders, tok, mask=False)] == [0, 1, 2]
+    assert [r.key[-1] for r in s.method_rows("sft", folders[::-1], tok, mask=False)] == [2, 0, 1]
+    (tmp_path / "b" / "summary.json").unlink()
+    with pytest.raises(SystemExit, match=r"b: `adapt train data` has not finished"):
+        s.method_rows("dpo", folders, tok, mask=False)
