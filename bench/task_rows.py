@@ -1,6 +1,6 @@
 """Task-contrast rows: pairs of step-0 prompts that differ only in the task, each with its oracle's first action.
 
-    python bench/task_rows.py --out runs/tasks/rows.jsonl [--personas juan,sarah,...] [--seeds 100-107]
+    python bench/task_rows.py --out runs/tasks/rows.jsonl [--personas juan,sarah,...] [--seeds 100-107] [--only tea_eggs]
 
 Every student in this project reads "Make tea and eggs for breakfast" as "Make toast and coffee for
 breakfast": it starts with `Look for bread` and makes no tea-and-eggs dish (0 of 32 unseen episodes for
@@ -28,12 +28,13 @@ SPLIT0_TRAIN = ("juan", "sarah", "ramesh", "jamal", "ron", "nalini", "maya", "mi
                 "rachel", "carlos")
 
 
-def task_pair_rows(sc) -> list:
-    """The rows of one scene (`llm.task_probe.Scene`): for each pair of tasks with different first actions,
-    each task's step-0 prompt and its own first action, under one key."""
+def task_pair_rows(sc, only: str | None = None) -> list:
+    """The rows of one scene (`llm.task_probe.Scene`): for each pair of tasks with different first actions
+    (with `only`, the pairs that contain that task), each task's step-0 prompt and its own first action, under
+    one key."""
     out = []
     for a, b in itertools.combinations(sorted(sc.prompts), 2):
-        if sc.firsts[a] == sc.firsts[b]:
+        if sc.firsts[a] == sc.firsts[b] or (only and only not in (a, b)):
             continue
         key = f"task/{a} vs {b}/{sc.persona}/{sc.seed}"
         for t in (a, b):
@@ -49,6 +50,7 @@ def main(argv=None) -> int:
     ap.add_argument("--out", required=True, help="JSONL file to write")
     ap.add_argument("--personas", default=",".join(SPLIT0_TRAIN), help="personas (default: split 0's training ones)")
     ap.add_argument("--seeds", default="100-107", help="scene seeds, e.g. 100-107 (keep them off the evaluation's)")
+    ap.add_argument("--only", default=None, help="keep the pairs that contain this task (e.g. the one a model misreads)")
     args = ap.parse_args(argv)
 
     from adaptbench.compiler import load_domain
@@ -60,9 +62,11 @@ def main(argv=None) -> int:
     unknown = sorted(set(personas) - set(domain.persona))
     if unknown:
         raise SystemExit(f"--personas: unknown {', '.join(unknown)}")
+    if args.only and args.only not in domain.task:
+        raise SystemExit(f"--only: unknown task {args.only} (choose from: {', '.join(domain.task)})")
     builder = PromptBuilder(domain, "planner")
     rows = [r for p in personas for s in seed_range(args.seeds)
-            for r in task_pair_rows(scene(domain, p, s, list(domain.task), builder))]
+            for r in task_pair_rows(scene(domain, p, s, list(domain.task), builder), args.only)]
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text("".join(json.dumps(r) + "\n" for r in rows))

@@ -28,6 +28,8 @@ def test_pairs_differ_only_in_the_task_and_tasks_with_one_first_action_make_none
         lines = [set("\n".join(m["content"] for m in r["messages"]).splitlines()) for r in (a, b)]
         assert lines[0] - lines[1] and len(lines[0] ^ lines[1]) <= 2 * len(domain.task[a["task"]].text.splitlines())
         assert domain.task[a["task"]].text in "".join(lines[0] - lines[1])
+    only = s.task_pair_rows(sc, only="tea_eggs")
+    assert only == [r for a, b in pairs if "tea_eggs" in (a["task"], b["task"]) for r in (a, b)] and only
 
 
 def test_the_cli_writes_rows_cook_and_read_takes_as_pairs(tmp_path):
@@ -41,3 +43,5 @@ def test_the_cli_writes_rows_cook_and_read_takes_as_pairs(tmp_path):
     assert all(json.loads(line)["at"] == "task" for line in out.read_text().splitlines())
     with pytest.raises(SystemExit, match="unknown nobody"):
         s.main(["--out", str(out), "--personas", "nobody"])
+    with pytest.raises(SystemExit, match="unknown task tea_toest"):
+        s.main(["--out", str(out), "--personas", "juan", "--only", "tea_toest"])
