@@ -24,9 +24,6 @@ from pathlib import Path
 
 from answer_context import seed_range  # bench/answer_context.py, beside this file
 
-SPLIT0_TRAIN = ("juan", "sarah", "ramesh", "jamal", "ron", "nalini", "maya", "miranda", "maria", "ethan",
-                "rachel", "carlos")
-
 
 def task_pair_rows(sc, only: str | None = None) -> list:
     """The rows of one scene (`llm.task_probe.Scene`): for each pair of tasks with different first actions
@@ -48,7 +45,7 @@ def main(argv=None) -> int:
     """Write the task-contrast rows of the given personas and scene seeds."""
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--out", required=True, help="JSONL file to write")
-    ap.add_argument("--personas", default=",".join(SPLIT0_TRAIN), help="personas (default: split 0's training ones)")
+    ap.add_argument("--personas", default="", help="comma-separated personas (default: split 0's training ones)")
     ap.add_argument("--seeds", default="100-107", help="scene seeds, e.g. 100-107 (keep them off the evaluation's)")
     ap.add_argument("--only", default=None, help="keep the pairs that contain this task (e.g. the one a model misreads)")
     args = ap.parse_args(argv)
@@ -56,9 +53,10 @@ def main(argv=None) -> int:
     from adaptbench.compiler import load_domain
     from adaptbench.llm.prompts import PromptBuilder
     from adaptbench.llm.task_probe import scene
+    from adaptbench.training.student import training_personas
 
     domain = load_domain()
-    personas = args.personas.split(",")
+    personas = args.personas.split(",") if args.personas else list(training_personas(domain, "0"))
     unknown = sorted(set(personas) - set(domain.persona))
     if unknown:
         raise SystemExit(f"--personas: unknown {', '.join(unknown)}")
