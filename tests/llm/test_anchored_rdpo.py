@@ -76,7 +76,7 @@ def _args(**over):
     import argparse
 
     s = _script()
-    base = dict(out="", model="m", data="d", method="dpo", episodes=["e.jsonl"], rows_per_update=4,
+    base = dict(out="", model="m", data=["d"], method="dpo", episodes=["e.jsonl"], rows_per_update=4,
                 episodes_per_update=2, anchor_kl=10.0, beta=0.1, lr=1e-3, mask_forced=True, seed=0)
     assert set(base) - {"out"} == set(s.SETTINGS)
     return argparse.Namespace(**(base | over))
