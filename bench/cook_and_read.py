@@ -26,6 +26,10 @@ own answer's action against the other answer's, -log sigmoid(beta x margin) (`co
 ignores the answer cannot lower it, and it leaves the actions' likelihoods to the episodes, where the
 likelihood of the rows (`sft`) pulls the student toward the rows' prompts. `--rows-per-update` still counts
 rows (two a pair); the prompts' shared opening runs once (`training.shared_prefix.prompt_action_logprobs`).
+
+`--pair-sampling hard` (the twenty-ninth session) draws the contrast pairs in proportion to their last known loss
+(`HardPairs`) instead of each once per pass: among thousands of pairs the model already tells apart, the few it
+does not are otherwise a sliver of the updates, and a pair pushed back by training on its neighbour is drawn again.
 """
 
 from __future__ import annotations
@@ -48,6 +52,50 @@ def batches(n_items: int, per_update: int, rng: random.Random):
             order += rng.sample(range(n_items), n_items)
         yield order[:per_update]
         order = order[per_update:]
+
+
+class HardPairs:
+    """`--pair-sampling hard`: each update draws its pairs with chance in proportion to each pair's last known
+    contrast loss (plus `floor` x the mean, so that no pair is never drawn again), instead of each pair once per
+    shuffled pass. The losses are scored once at the start (`score`), updated for the pairs an update trained
+    on, and re-scored for `rescore` other pairs an update (without gradients), so that a pair the training
+    pushes back (the twenty-ninth session's see-saw: one task pair learnt, its neighbour lost) is drawn again."""
+
+    def __init__(self, losses: list, rng: random.Random, floor: float = 0.05, rescore: int = 4):
+        self.losses, self.rng, self.floor, self.rescore = list(losses), rng, floor, rescore
+
+    def draw(self, k: int) -> list:
+        """k distinct pair indices, each drawn in proportion to its loss (+ the floor)."""
+        base = self.floor * sum(self.losses) / len(self.losses)
+        weights = [loss + base + 1e-12 for loss in self.losses]
+        chosen: list = []
+        while len(chosen) < min(k, len(weights)):
+            i = self.rng.choices(range(len(weights)), weights)[0]
+            if i not in chosen:
+                chosen.append(i)
+        return chosen
+
+    def update(self, indices: list, terms: list) -> None:
+        """The trained pairs' losses: each pair's two side terms (in `indices` order), summed."""
+        for n, i in enumerate(indices):
+            self.losses[i] = float(terms[2 * n].detach()) + float(terms[2 * n + 1].detach())
+
+    def others(self, exclude: list) -> list:
+        """`rescore` pair indices to score again without gradients (none of `exclude`)."""
+        pool = [i for i in range(len(self.losses)) if i not in exclude]
+        return self.rng.sample(pool, min(self.rescore, len(pool)))
+
+
+def pair_losses(model, pairs: list, beta: float) -> list:
+    """Each pair's contrast loss (its two side terms summed), without gradients."""
+    import torch
+
+    with torch.no_grad():
+        out = []
+        for pair in pairs:
+            terms, _ = contrast_terms(model, [pair], beta)
+            out.append(float(terms[0]) + float(terms[1]))
+    return out
 
 
 def episode_losses(model, episodes: list) -> list:
@@ -78,13 +126,17 @@ def anchored_episode_terms(model, anchor, episodes: list) -> tuple:
     return losses, kls
 
 
-def contrast_update_loss(model, anchor, weight: float, episodes: list, pairs: list, beta: float) -> tuple:
+def contrast_update_loss(model, anchor, weight: float, episodes: list, pairs: list, beta: float,
+                         sampler: HardPairs | None = None, indices: tuple = ()) -> tuple:
     """One update's loss under `--row-loss contrast`: the mean of the episodes' token losses and the pairs'
     contrast terms, plus `weight` x the episodes' mean KL from `anchor` when there is one. Returns (the loss,
-    the sides that prefer their own action, the sides, the KL as a float: 0.0 without an anchor)."""
+    the sides that prefer their own action, the sides, the KL as a float: 0.0 without an anchor). With a
+    `sampler`, the trained pairs' (`indices`) losses are handed to it."""
     import torch
 
     terms, right = contrast_terms(model, pairs, beta)
+    if sampler is not None:
+        sampler.update(list(indices), terms)
     if anchor is None:
         return torch.stack(episode_losses(model, episodes) + terms).mean(), right, len(terms), 0.0
     ce, kls = anchored_episode_terms(model, anchor, episodes)
@@ -178,8 +230,8 @@ def training_episodes(domain, tok, paths: list, mask: bool) -> list:
     return episodes
 
 
-def main(argv=None) -> int:
-    """Train on a fixed mix of whole episodes and answer rows; probe and save as it goes."""
+def arguments(argv=None) -> argparse.Namespace:
+    """The command line's settings."""
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--out", required=True, help="folder for curve.jsonl and the saved models")
     ap.add_argument("--model", default="student", help="model to start from (a name or a directory)")
@@ -197,6 +249,9 @@ def main(argv=None) -> int:
                     help="no loss on the tokens of a bank question that the bank forces (training.forced_tokens): "
                          "the loss stays on Ask itself and where two questions part")
     ap.add_argument("--beta", type=float, default=1.0, help="the contrast loss's scale on the log-prob margin")
+    ap.add_argument("--pair-sampling", choices=("uniform", "hard"), default="uniform",
+                    help="contrast pairs each once per shuffled pass (default), or drawn in proportion to their last "
+                         "known loss (HardPairs: scored once at the start, then re-scored as it goes)")
     ap.add_argument("--anchor-kl", type=float, default=0.0,
                     help="weight of KL(start model || model) on the episodes' action tokens (0: none)")
     ap.add_argument("--anchor-model", default="",
@@ -207,7 +262,34 @@ def main(argv=None) -> int:
     ap.add_argument("--personas", default=",".join(SPLIT0_UNSEEN), help="the probe's personas")
     ap.add_argument("--seed", type=int, default=0, help="data order")
     ap.add_argument("--threads", type=int, default=1, help="torch threads (default 1: the run beside another job)")
-    args = ap.parse_args(argv)
+    return ap.parse_args(argv)
+
+
+def make_sampler(args, model, rows: list, rng: random.Random) -> HardPairs | None:
+    """`--pair-sampling hard`'s sampler, every pair scored once (None for uniform sampling)."""
+    if args.pair_sampling != "hard":
+        return None
+    if args.row_loss != "contrast":
+        raise SystemExit("--pair-sampling hard takes --row-loss contrast")
+    print(f"scoring {len(rows)} pairs for --pair-sampling hard", flush=True)
+    return HardPairs(pair_losses(model, rows, args.beta), rng)
+
+
+def pick_rows(sampler: HardPairs | None, row_batches, per_update: int, model, rows: list, beta: float) -> list:
+    """The next update's row (or pair) indices: the next shuffled batch, or the sampler's draw, after it has
+    re-scored a few other pairs."""
+    if sampler is None:
+        return next(row_batches)
+    picked = sampler.draw(per_update)
+    others = sampler.others(picked)
+    for i, loss_i in zip(others, pair_losses(model, [rows[i] for i in others], beta), strict=True):
+        sampler.losses[i] = loss_i
+    return picked
+
+
+def main(argv=None) -> int:
+    """Train on a fixed mix of whole episodes and answer rows; probe and save as it goes."""
+    args = arguments(argv)
 
     import torch
     from transformers import AutoModelForCausalLM, AutoTokenizer
@@ -243,6 +325,7 @@ def main(argv=None) -> int:
     rng = random.Random(args.seed)
     ep_batches = batches(len(episodes), args.episodes_per_update, rng)
     row_batches = batches(len(rows), per_update, rng)
+    sampler = make_sampler(args, model, rows, rng)
     curve = out / "curve.jsonl"
     done = [json.loads(line)["step"] for line in curve.read_text().splitlines()] if curve.is_file() else []
     if done:
@@ -266,10 +349,12 @@ def main(argv=None) -> int:
     sides = right = 0
     kl_seen: list = []
     for step in range(1, args.steps + 1):
-        eps, batch_rows = [episodes[i] for i in next(ep_batches)], [rows[i] for i in next(row_batches)]
+        picked = pick_rows(sampler, row_batches, per_update, model, rows, args.beta)
+        eps, batch_rows = [episodes[i] for i in next(ep_batches)], [rows[i] for i in picked]
         opt.zero_grad()
         if args.row_loss == "contrast":
-            loss, ok, n, kl = contrast_update_loss(model, anchor, args.anchor_kl, eps, batch_rows, args.beta)
+            loss, ok, n, kl = contrast_update_loss(model, anchor, args.anchor_kl, eps, batch_rows, args.beta,
+                                                   sampler, tuple(picked))
             sides, right = sides + n, right + ok
             kl_seen += [kl] if anchor is not None else []
         else:

@@ -51,3 +51,31 @@ def test_the_anchor_sees_only_the_action_tokens(tiny):
     kl.backward()
     assert all(p.grad is None for p in anchor.parameters())
     assert any(p.grad is not None and p.grad.abs().sum() > 0 for p in model.parameters())
+
+
+def test_hard_pairs_draw_by_loss_and_keep_every_pair_in_reach():
+    import random
+
+    import torch
+
+    s = _script()
+    sampler = s.HardPairs([0.0, 0.0, 10.0, 0.0], random.Random(0), floor=0.05, rescore=2)
+    draws = [sampler.draw(1)[0] for _ in range(400)]
+    assert draws.count(2) > 300 and len(set(draws)) > 1  # the hard pair mostly, the others through the floor
+    assert sorted(sampler.draw(4)) == [0, 1, 2, 3]  # distinct indices, never more than there are pairs
+    sampler.update([2, 0], [torch.tensor(0.5), torch.tensor(0.25), torch.tensor(1.0), torch.tensor(2.0)])
+    assert sampler.losses == [3.0, 0.0, 0.75, 0.0]
+    others = sampler.others([0, 1])
+    assert sorted(others) == [2, 3]
+
+
+def test_hard_sampling_needs_the_contrast_loss():
+    import random
+
+    import pytest
+
+    s = _script()
+    args = s.arguments(["--out", "x", "--episodes", "e.jsonl", "--rows", "r.jsonl", "--pair-sampling", "hard"])
+    with pytest.raises(SystemExit, match="takes --row-loss contrast"):
+        s.make_sampler(args, None, [], random.Random(0))
+    assert s.make_sampler(s.arguments(["--out", "x", "--episodes", "e", "--rows", "r"]), None, [], None) is None
