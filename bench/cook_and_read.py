@@ -57,7 +57,7 @@ def batches(n_items: int, per_update: int, rng: random.Random):
 class HardPairs:
     """`--pair-sampling hard`: each update draws its pairs with chance in proportion to each pair's last known
     contrast loss (plus `floor` x the mean, so that no pair is never drawn again), instead of each pair once per
-    shuffled pass. The losses are scored once at the start (`score`), updated for the pairs an update trained
+    shuffled pass. The losses are scored once at the start (`pair_losses`), updated for the pairs an update trained
     on, and re-scored for `rescore` other pairs an update (without gradients), so that a pair the training
     pushes back (the twenty-ninth session's see-saw: one task pair learnt, its neighbour lost) is drawn again."""
 

@@ -24,6 +24,8 @@ import statistics
 import sys
 from pathlib import Path
 
+from cook_and_read import pair_examples  # bench/cook_and_read.py, beside this file
+
 
 def distinction(a: dict, b: dict) -> str:
     """What tells a pair's two prompts apart: the two tasks ("cereal vs tea_eggs") for task rows, the choice
@@ -45,21 +47,15 @@ def row_pairs(rows: list) -> list:
 
 
 def readings(model, tokenizer, pairs: list) -> list:
-    """Each pair's (m_a, m_b): its two sides' margins for their own action over the other's (nats)."""
+    """Each pair's (m_a, m_b): its two sides' margins for their own action over the other's (nats), from the
+    prompts and actions as the contrast loss tokenizes them (`cook_and_read.pair_examples`)."""
     import torch
 
-    from adaptbench.llm.chat import render
-    from adaptbench.llm.prompts import Prompt
     from adaptbench.training.shared_prefix import prompt_action_logprobs
-
-    def ids(text: str) -> list:
-        return tokenizer(text, add_special_tokens=False)["input_ids"]
 
     out = []
     with torch.no_grad():
-        for a, b in pairs:
-            prompts = [ids(render(tokenizer, Prompt(tuple(r["messages"]), r.get("prefix", "")))) for r in (a, b)]
-            actions = [ids(r["action"]) + [tokenizer.eos_token_id] for r in (a, b)]
+        for prompts, actions in pair_examples([row for pair in pairs for row in pair], tokenizer):
             lp = prompt_action_logprobs(model, prompts, actions)
             out.append((float(lp[0, 0] - lp[0, 1]), float(lp[1, 1] - lp[1, 0])))
     return out
