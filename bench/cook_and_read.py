@@ -91,11 +91,8 @@ def pair_losses(model, pairs: list, beta: float) -> list:
     import torch
 
     with torch.no_grad():
-        out = []
-        for pair in pairs:
-            terms, _ = contrast_terms(model, [pair], beta)
-            out.append(float(terms[0]) + float(terms[1]))
-    return out
+        terms, _ = contrast_terms(model, pairs, beta)
+    return [float(terms[2 * n]) + float(terms[2 * n + 1]) for n in range(len(pairs))]
 
 
 def episode_losses(model, episodes: list) -> list:
