@@ -48,10 +48,14 @@ def held_sets(specs: list, limit: int) -> dict:
     return out
 
 
-def read_all(model, tok, held: dict) -> dict:
-    """Each held-out set's reading over all its pairs (nats, standard error, share of pairs both ways)."""
+def read_all(model, tok, held: dict, by_choice: bool = False) -> dict:
+    """Each held-out set's reading over all its pairs (nats, standard error, share of pairs both ways); with
+    `by_choice`, per choice too (`pair_reading.summary`'s groups)."""
     model.eval()
-    out = {name: summary(pairs, readings(model, tok, pairs))["all"] for name, pairs in held.items()}
+    out = {}
+    for name, pairs in held.items():
+        groups = summary(pairs, readings(model, tok, pairs))
+        out[name] = groups if by_choice else groups["all"]
     model.train()
     return out
 
@@ -84,6 +88,8 @@ def arguments(argv=None) -> argparse.Namespace:
                     help="train only the top K decoder layers and the final norm (0: every weight); the layers below "
                          "keep the start model's word knowledge and cost no backward pass")
     ap.add_argument("--eval-every", type=int, default=50)
+    ap.add_argument("--by-choice", action="store_true", help="record each choice's reading, not only all pairs'")
+    ap.add_argument("--save", action="store_true", help="save the trained model to OUT/model at the end")
     ap.add_argument("--seed", type=int, default=0, help="pair order")
     ap.add_argument("--threads", type=int, default=1, help="torch threads")
     return ap.parse_args(argv)
@@ -119,7 +125,7 @@ def main(argv=None) -> int:
 
     def evaluate(step: int, loss: float) -> None:
         rec = {"step": step, "loss": round(loss, 4), "train_seconds": round(train_s, 1),
-               "reading": read_all(model, tok, held)}
+               "reading": read_all(model, tok, held, args.by_choice)}
         with curve.open("a") as f:
             f.write(json.dumps(rec) + "\n")
         print(json.dumps(rec), flush=True)
@@ -141,6 +147,9 @@ def main(argv=None) -> int:
             print(f"update {step}: loss {sum(losses[-10:]) / 10:.4f} ({time.perf_counter() - t0:.0f} s)", flush=True)
         if step % args.eval_every == 0 or step == args.steps:
             evaluate(step, sum(losses[-args.eval_every:]) / len(losses[-args.eval_every:]))
+    if args.save:
+        model.save_pretrained(out / "model")
+        tok.save_pretrained(out / "model")
     return 0
 
 

@@ -32,6 +32,13 @@ def test_training_reads_the_held_out_sets_at_each_evaluation(tiny, rows, tmp_pat
     assert [c["step"] for c in curve] == [0, 2, 3]
     assert all(c["reading"]["same"]["pairs"] == 2 for c in curve)
     assert curve[-1]["loss"] == curve[-1]["loss"]  # a number, not NaN, once trained
+    assert not (out / "model").exists()
+    again = tmp_path / "again"
+    assert s.main(["--out", str(again), "--model", str(tiny), "--train", str(rows), "--held", f"same={rows}",
+                   "--held-limit", "2", "--steps", "1", "--by-choice", "--save"]) == 0
+    last = json.loads((again / "curve.jsonl").read_text().splitlines()[-1])["reading"]["same"]
+    assert last["all"]["pairs"] == 2 and any(k.startswith("eggs.") for k in last)
+    assert (again / "model" / "config.json").is_file()
     with pytest.raises(SystemExit, match="exists"):
         s.main(["--out", str(out), "--model", str(tiny), "--train", str(rows), "--held", f"same={rows}"])
 
